@@ -1,0 +1,185 @@
+"""The command line: ``render``, ``compare`` and ``matrix`` (scripts/ctlab.py is the entry).
+
+Bad input gets a one-line message naming the problem and exit status 2, and nothing is
+written. Blender's own per-tile output goes to a log file in the output folder's parent
+temp area; the command prints its own progress.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+from .errors import UserError
+from .params import DIFFUSE_MODELS, G_MODELS, IBL_MODES, UNITS, VIEWS, ModelOptions
+
+EXIT_BAD_INPUT = 2
+
+
+def parse_vector(text: str, n: int, what: str) -> tuple:
+    try:
+        values = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != n or not all(math.isfinite(v) for v in values):
+        raise UserError(f"malformed {what} {text!r}; give {n} comma-separated numbers")
+    return values
+
+
+def parse_grid(text: str) -> tuple:
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.isdigit() for p in parts):
+        raise UserError(f"malformed grid {text!r}; give ROWSxCOLS, e.g. 7x7")
+    return int(parts[0]), int(parts[1])
+
+
+def progress(message: str) -> None:
+    print(f"[ctlab {time.strftime('%H:%M:%S')}] {message}", flush=True)
+
+
+# ---------------------------------------------------------------------------------------
+
+def add_scene_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--grid", default="7x7", help="ROWSxCOLS of the sphere matrix (default 7x7)")
+    p.add_argument("--size", type=int, default=512, help="image width and height in pixels")
+    p.add_argument("--samples", type=int, default=64, help="render samples per pixel")
+    p.add_argument("--hdri", default="", help="equirectangular HDRI (default: Blender's forest.exr)")
+    p.add_argument("--hdri-strength", type=float, default=1.0)
+    p.add_argument("--hdri-rotation", type=float, default=0.0, help="degrees about Z")
+    p.add_argument("--sun-dir", default="-0.45,-0.55,0.70", help="X,Y,Z toward the Sun")
+    p.add_argument("--sun-strength", type=float, default=1.0, help="Sun irradiance (W/m^2)")
+    p.add_argument("--albedo", default="1.0,0.766,0.336", help="R,G,B linear albedo (gold)")
+    p.add_argument("--ibl", default=IBL_MODES[0], help="|".join(IBL_MODES))
+    p.add_argument("--g", dest="g_model", default=G_MODELS[0], help="|".join(G_MODELS))
+    p.add_argument("--diffuse", dest="diffuse_model", default=DIFFUSE_MODELS[0],
+                   help="|".join(DIFFUSE_MODELS))
+    p.add_argument("--units", default=UNITS[0], help="|".join(UNITS))
+    p.add_argument("--env-samples", type=int, default=4,
+                   help="environment samples per shading point and render sample (each of "
+                        "BRDF and environment sampling)")
+    p.add_argument("--env-visibility", action="store_true",
+                   help="trace environment samples for occlusion by other objects")
+    p.add_argument("--principled-distribution", default="MULTI_GGX", choices=("MULTI_GGX", "GGX"))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--verbose", action="store_true", help="show Blender's own output")
+
+
+def matrix_settings(args, shader: str, view: str):
+    from .scene_builder import MatrixSettings
+    if view not in VIEWS:
+        raise UserError(f"unknown view {view!r}; choose one of: {', '.join(VIEWS)}")
+    rows, cols = parse_grid(args.grid)
+    if args.samples < 1 or args.samples > 65536:
+        raise UserError(f"samples {args.samples} out of range; use 1 to 65536")
+    model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
+                         units=args.units, ibl=args.ibl, env_samples=args.env_samples,
+                         env_visibility=args.env_visibility, seed=args.seed)
+    s = MatrixSettings(rows=rows, cols=cols, hdri=args.hdri, hdri_strength=args.hdri_strength,
+                       hdri_rotation=args.hdri_rotation,
+                       sun_to_light=parse_vector(args.sun_dir, 3, "sun direction"),
+                       sun_strength=args.sun_strength,
+                       albedo=parse_vector(args.albedo, 3, "albedo"), shader=shader,
+                       principled_distribution=args.principled_distribution,
+                       width=args.size, height=args.size, model=model)
+    s.validate()
+    if s.hdri:
+        from .hdri import load_hdri
+        load_hdri(s.hdri_path())
+    return s
+
+
+def render_one(settings, out_dir: Path, samples: int, verbose: bool) -> dict:
+    """Build the matrix in a fresh empty scene and render it into out_dir."""
+    import bpy
+    from . import renderer, scene_builder
+    renderer.check_writable(out_dir)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    description = scene_builder.build_matrix(scene, settings)
+    renderer.configure(scene, settings.shader, settings.model.view, samples, settings.model.seed)
+    log = None if verbose else Path(out_dir).resolve().parent / f".{Path(out_dir).name}-blender.log"
+    return renderer.render(scene, out_dir, description, log)
+
+
+def cmd_render(args) -> None:
+    settings = matrix_settings(args, args.shader, args.view)
+    out = Path(args.out)
+    progress(f"rendering {settings.shader} view={args.view} grid={args.grid} size={args.size} "
+             f"samples={args.samples} -> {out}")
+    d = render_one(settings, out, args.samples, args.verbose)
+    progress(f"done in {d['render_seconds']:.1f} s: {out / 'render.exr'}, render.png, scene.json")
+
+
+def cmd_compare(args) -> None:
+    from .compare import compare
+    result = compare(Path(args.dir_a), Path(args.dir_b), Path(args.out))
+    o = result["overall"]
+    progress(f"compared {len(result['cells'])} cells: mean CIEDE2000 {o['ciede2000_mean']:.2f}, "
+             f"PSNR {o['psnr_db']:.2f} dB -> {Path(args.out) / 'metrics.json'}, diff.png")
+
+
+def cmd_matrix(args) -> None:
+    """The main job: OSL and Principled renders of the full view, compared, with a report."""
+    from .compare import compare
+    from .renderer import check_writable
+    from .report import write_report
+    out = Path(args.out)
+    ct = matrix_settings(args, "osl", "full")
+    ref = matrix_settings(args, "principled", "full")
+    check_writable(out)
+    steps = 4
+    timings = {}
+    progress(f"[1/{steps}] Cook-Torrance (OSL): grid {args.grid}, {args.size} px, "
+             f"{args.samples} samples, {args.env_samples} env samples")
+    d = render_one(ct, out / "cook_torrance", args.samples, args.verbose)
+    timings["Cook-Torrance (OSL)"] = d["render_seconds"]
+    progress(f"      {d['render_seconds']:.1f} s")
+    progress(f"[2/{steps}] Principled BSDF reference ({args.principled_distribution})")
+    d_ref = render_one(ref, out / "principled", args.samples, args.verbose)
+    timings["Principled"] = d_ref["render_seconds"]
+    progress(f"      {d_ref['render_seconds']:.1f} s")
+    progress(f"[3/{steps}] comparing")
+    metrics = compare(out / "cook_torrance", out / "principled", out / "compare")
+    progress(f"[4/{steps}] writing the report")
+    report = write_report(out, "cook_torrance", "principled", "compare", metrics, d, timings)
+    o = metrics["overall"]
+    progress(f"done: mean CIEDE2000 {o['ciede2000_mean']:.2f}, PSNR {o['psnr_db']:.2f} dB; "
+             f"open {report}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ctlab", description="Cook-Torrance Lab batch tools")
+    sub = parser.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("render", help="render the sphere matrix with one shader and view")
+    r.add_argument("--shader", required=True, choices=("osl", "principled"))
+    r.add_argument("--out", required=True, help="output folder")
+    r.add_argument("--view", default="full", help="|".join(VIEWS))
+    add_scene_arguments(r)
+    r.set_defaults(func=cmd_render)
+    c = sub.add_parser("compare", help="compare two render folders")
+    c.add_argument("dir_a")
+    c.add_argument("dir_b")
+    c.add_argument("--out", required=True, help="output folder for metrics.json and diff.png")
+    c.set_defaults(func=cmd_compare)
+    m = sub.add_parser("matrix", help="the main job: Cook-Torrance vs Principled, with a report")
+    m.add_argument("--out", default="out/matrix", help="output folder (default out/matrix)")
+    add_scene_arguments(m)
+    m.set_defaults(func=cmd_matrix)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:                   # argparse already printed one line
+        return EXIT_BAD_INPUT if exc.code else 0
+    try:
+        args.func(args)
+    except UserError as exc:
+        print(f"ctlab: error: {exc}", file=sys.stderr, flush=True)
+        return EXIT_BAD_INPUT
+    return 0

@@ -1,0 +1,170 @@
+"""Comparing two renders of the same scene: per-cell and overall metrics, a difference map.
+
+Metrics (per cell over the pixels inside 0.95 of the sphere radius, and over all cells):
+- MAE and RMSE of the raw float values (render.exr, RGB);
+- PSNR of the displayed colours (render.png, 0..1, peak 1);
+- mean CIEDE2000 of the displayed colours (sRGB -> CIE Lab, D65), after Sharma, Wu & Dalal,
+  "The CIEDE2000 color-difference formula: implementation notes", 2005.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+from .hdri import oiio, write_float_exr  # noqa: F401  (write_float_exr used by callers)
+
+CELL_FRACTION = 0.95
+
+
+def read_image(path: Path) -> np.ndarray:
+    """An image as float32 (h, w, 3) through OpenImageIO."""
+    OIIO = oiio()
+    buf = OIIO.ImageBuf(str(path))
+    if buf.has_error or buf.spec().nchannels < 3:
+        raise UserError(f"cannot read image {path}: {buf.geterror().strip() or 'not RGB'}")
+    return np.asarray(buf.get_pixels(OIIO.FLOAT))[:, :, :3].astype(np.float32)
+
+
+def write_png(path: Path, rgb01: np.ndarray) -> None:
+    """Write an 8-bit RGB PNG (values already display-referred in 0..1), whole or not at all."""
+    OIIO = oiio()
+    h, w, _ = rgb01.shape
+    buf = OIIO.ImageBuf(OIIO.ImageSpec(w, h, 3, OIIO.UINT8))
+    buf.set_pixels(OIIO.ROI(0, w, 0, h, 0, 1, 0, 3), np.clip(rgb01, 0, 1).astype(np.float32))
+    tmp = path.with_name(path.name + ".partial.png")
+    if not buf.write(str(tmp)):
+        raise UserError(f"cannot write {path}: {buf.geterror().strip()}")
+    tmp.replace(path)
+
+
+# --- Colour science -------------------------------------------------------------------
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+_SRGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
+                         [0.2126729, 0.7151522, 0.0721750],
+                         [0.0193339, 0.1191920, 0.9503041]])
+_WHITE_D65 = np.array([0.95047, 1.0, 1.08883])
+
+
+def srgb_to_lab(c: np.ndarray) -> np.ndarray:
+    """Display sRGB (0..1) to CIE L*a*b* (D65)."""
+    xyz = srgb_to_linear(c) @ _SRGB_TO_XYZ.T / _WHITE_D65
+    eps, kappa = 216 / 24389, 24389 / 27
+    f = np.where(xyz > eps, np.cbrt(xyz), (kappa * xyz + 16) / 116)
+    return np.stack([116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]),
+                     200 * (f[..., 1] - f[..., 2])], axis=-1)
+
+
+def ciede2000(lab1: np.ndarray, lab2: np.ndarray) -> np.ndarray:
+    """CIEDE2000 colour difference (kL = kC = kH = 1), Sharma et al. 2005, eqs. 1-22."""
+    L1, a1, b1 = np.moveaxis(np.asarray(lab1, dtype=np.float64), -1, 0)
+    L2, a2, b2 = np.moveaxis(np.asarray(lab2, dtype=np.float64), -1, 0)
+    C1, C2 = np.hypot(a1, b1), np.hypot(a2, b2)
+    Cbar = (C1 + C2) / 2
+    G = 0.5 * (1 - np.sqrt(Cbar ** 7 / (Cbar ** 7 + 25.0 ** 7)))
+    a1p, a2p = (1 + G) * a1, (1 + G) * a2
+    C1p, C2p = np.hypot(a1p, b1), np.hypot(a2p, b2)
+    h1p = np.degrees(np.arctan2(b1, a1p)) % 360
+    h2p = np.degrees(np.arctan2(b2, a2p)) % 360
+    dLp = L2 - L1
+    dCp = C2p - C1p
+    dhp = h2p - h1p
+    dhp = np.where(dhp > 180, dhp - 360, np.where(dhp < -180, dhp + 360, dhp))
+    dhp = np.where(C1p * C2p == 0, 0.0, dhp)
+    dHp = 2 * np.sqrt(C1p * C2p) * np.sin(np.radians(dhp) / 2)
+    Lbp = (L1 + L2) / 2
+    Cbp = (C1p + C2p) / 2
+    hsum = h1p + h2p
+    hbp = np.where(np.abs(h1p - h2p) > 180,
+                   np.where(hsum < 360, (hsum + 360) / 2, (hsum - 360) / 2), hsum / 2)
+    hbp = np.where(C1p * C2p == 0, hsum, hbp)
+    T = (1 - 0.17 * np.cos(np.radians(hbp - 30)) + 0.24 * np.cos(np.radians(2 * hbp))
+         + 0.32 * np.cos(np.radians(3 * hbp + 6)) - 0.20 * np.cos(np.radians(4 * hbp - 63)))
+    dtheta = 30 * np.exp(-(((hbp - 275) / 25) ** 2))
+    Rc = 2 * np.sqrt(Cbp ** 7 / (Cbp ** 7 + 25.0 ** 7))
+    Sl = 1 + 0.015 * (Lbp - 50) ** 2 / np.sqrt(20 + (Lbp - 50) ** 2)
+    Sc = 1 + 0.045 * Cbp
+    Sh = 1 + 0.015 * Cbp * T
+    Rt = -np.sin(np.radians(2 * dtheta)) * Rc
+    return np.sqrt((dLp / Sl) ** 2 + (dCp / Sc) ** 2 + (dHp / Sh) ** 2
+                   + Rt * (dCp / Sc) * (dHp / Sh))
+
+
+# --- Masks and metrics ------------------------------------------------------------------
+
+def cell_mask(shape, cell: dict, fraction: float = CELL_FRACTION) -> np.ndarray:
+    """Pixels whose centres lie within fraction x radius of the sphere's centre."""
+    h, w = shape[:2]
+    ys, xs = np.mgrid[0:h, 0:w]
+    cx, cy = cell["center_px"]
+    return (xs + 0.5 - cx) ** 2 + (ys + 0.5 - cy) ** 2 <= (fraction * cell["radius_px"]) ** 2
+
+
+def metrics(lin_a, lin_b, disp_a, disp_b, de, mask) -> dict:
+    d = (lin_a[mask] - lin_b[mask]).astype(np.float64)
+    mse_disp = float(np.mean((disp_a[mask].astype(np.float64) - disp_b[mask]) ** 2))
+    return {"pixels": int(mask.sum()),
+            "mae": float(np.mean(np.abs(d))),
+            "rmse": float(np.sqrt(np.mean(d ** 2))),
+            "psnr_db": float(10 * math.log10(1.0 / mse_disp)) if mse_disp > 0 else float("inf"),
+            "ciede2000_mean": float(np.mean(de[mask])),
+            "ciede2000_p95": float(np.percentile(de[mask], 95))}
+
+
+def heatmap(de: np.ndarray, vmax: float = 10.0) -> np.ndarray:
+    """CIEDE2000 per pixel as colour: black (0) -> blue -> red -> yellow -> white (>= vmax)."""
+    stops = np.array([[0, 0, 0], [0.1, 0.2, 0.8], [0.85, 0.1, 0.1], [1, 0.85, 0], [1, 1, 1]])
+    x = np.clip(de / vmax, 0, 1) * (len(stops) - 1)
+    i = np.minimum(x.astype(int), len(stops) - 2)
+    f = (x - i)[..., None]
+    return stops[i] * (1 - f) + stops[i + 1] * f
+
+
+def load_render(folder: Path):
+    folder = Path(folder)
+    for name in ("render.exr", "render.png", "scene.json"):
+        if not (folder / name).is_file():
+            raise UserError(f"{folder} is not a render folder: {name} is missing "
+                            "(make it with 'ctlab render')")
+    scene = json.loads((folder / "scene.json").read_text())
+    return read_image(folder / "render.exr"), read_image(folder / "render.png"), scene
+
+
+def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
+    """Write metrics.json and diff.png (CIEDE2000 heat map) into out_dir; return the metrics."""
+    from .renderer import check_writable
+    lin_a, disp_a, scene_a = load_render(dir_a)
+    lin_b, disp_b, scene_b = load_render(dir_b)
+    if lin_a.shape != lin_b.shape:
+        raise UserError(f"renders differ in size: {lin_a.shape[1]}x{lin_a.shape[0]} vs "
+                        f"{lin_b.shape[1]}x{lin_b.shape[0]}; render both with the same --size")
+    cells_a = [(c["row"], c["col"]) for c in scene_a["cells"]]
+    if cells_a != [(c["row"], c["col"]) for c in scene_b["cells"]]:
+        raise UserError("renders have different sphere grids; render both with the same --grid")
+    out_dir = check_writable(out_dir)
+    de = ciede2000(srgb_to_lab(disp_a), srgb_to_lab(disp_b))
+    all_mask = np.zeros(lin_a.shape[:2], dtype=bool)
+    cells = []
+    for cell in scene_a["cells"]:
+        mask = cell_mask(lin_a.shape, cell)
+        all_mask |= mask
+        cells.append({k: cell[k] for k in ("row", "col", "metallic", "smoothness")}
+                     | metrics(lin_a, lin_b, disp_a, disp_b, de, mask))
+    result = {"a": str(dir_a), "b": str(dir_b),
+              "a_shader": scene_a.get("shader"), "b_shader": scene_b.get("shader"),
+              "overall": metrics(lin_a, lin_b, disp_a, disp_b, de, all_mask),
+              "heatmap_max_ciede2000": 10.0, "cells": cells}
+    write_png(out_dir / "diff.png", heatmap(de))
+    tmp = out_dir / "metrics.json.partial"
+    tmp.write_text(json.dumps(result, indent=2))
+    tmp.replace(out_dir / "metrics.json")
+    return result

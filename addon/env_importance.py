@@ -1,0 +1,84 @@
+"""Environment importance-sampling tables for the OSL reference integrator.
+
+The HDRI is split into tiles; tile (r, c) is drawn with a probability proportional to its
+mean luminance times its solid angle (sin of the polar angle), floored so that no tile is
+impossible. The draw uses two inverse-CDF tables looked up with "closest" filtering:
+
+- marginal.exr     (M x 1):  entry k -> tile row for u1 in [k/M, (k+1)/M)
+- conditional.exr  (M x R):  row r, entry k -> tile column for u2 in [k/M, (k+1)/M)
+- pdf.exr          (C x R):  the density q(r, c) of the draw with respect to (s, t)
+
+q is computed from the tables themselves (counts / M), so the density the shader divides by
+is exactly that of the draw it makes: the estimator stays unbiased whatever M is
+(Pharr, Jakob & Humphreys, PBRT 3rd ed., 13.6.7 and 14.2.4, with tabulated inverses).
+In solid angle: p(omega) = q / (2 pi^2 sin(theta)).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .hdri import file_hash, load_hdri, write_float_exr
+from .paths import cache_dir
+
+TABLE_SIZE = 4096        # M: resolution of the inverse CDFs
+TILE = 4                 # tile edge in HDRI pixels (a 1024x512 map gives 256x128 tiles)
+FLOOR = 0.01             # every tile gets at least this fraction of the mean weight
+VERSION = 1
+
+
+def tile_weights(pixels: np.ndarray, tile: int = TILE) -> np.ndarray:
+    """Mean luminance (Rec. 709) of each tile times sin(theta) at the tile's centre row."""
+    h, w, _ = pixels.shape
+    t = max(1, min(tile, h // 4))
+    rows, cols = h // t, w // t
+    lum = np.maximum(pixels[: rows * t, : cols * t], 0) @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    lum = lum.reshape(rows, t, cols, t).mean(axis=(1, 3)).astype(np.float64)
+    theta = (np.arange(rows) + 0.5) / rows * np.pi
+    weight = lum * np.sin(theta)[:, None]
+    mean = weight.mean()
+    if mean <= 0:
+        weight = np.sin(theta)[:, None] * np.ones((1, cols))
+    else:
+        weight = weight + FLOOR * mean * np.sin(theta)[:, None]
+    return weight
+
+
+def inverse_cdf(weights: np.ndarray, size: int = TABLE_SIZE) -> np.ndarray:
+    """Entry k holds the index i with cdf[i-1] <= (k+0.5)/size < cdf[i]."""
+    cdf = np.cumsum(weights, dtype=np.float64)
+    cdf /= cdf[-1]
+    u = (np.arange(size) + 0.5) / size
+    return np.minimum(np.searchsorted(cdf, u, side="right"), len(weights) - 1)
+
+
+def build_tables(weights: np.ndarray, size: int = TABLE_SIZE):
+    """(marginal, conditional, density) as float arrays, density exact for the tables."""
+    rows, cols = weights.shape
+    marginal = inverse_cdf(weights.sum(axis=1), size)
+    conditional = np.stack([inverse_cdf(weights[r], size) if weights[r].sum() > 0
+                            else np.arange(size) * cols // size for r in range(rows)])
+    p_row = np.bincount(marginal, minlength=rows) / size
+    p_col = np.stack([np.bincount(conditional[r], minlength=cols) / size for r in range(rows)])
+    density = p_row[:, None] * p_col * rows * cols          # w.r.t. (s, t) in [0,1]^2
+    return (marginal[None, :].astype(np.float32), conditional.astype(np.float32),
+            density.astype(np.float32))
+
+
+def tables_for(hdri_path) -> dict:
+    """Paths of the three tables for an HDRI, built once and cached by content hash."""
+    hdri_path = Path(hdri_path)
+    key = f"env-importance-v{VERSION}-{TILE}-{TABLE_SIZE}-{file_hash(hdri_path)}"
+    folder = cache_dir() / key
+    names = {"marginal": folder / "marginal.exr", "conditional": folder / "conditional.exr",
+             "pdf": folder / "pdf.exr"}
+    if all(p.is_file() for p in names.values()):
+        return {k: str(v) for k, v in names.items()}
+    marginal, conditional, density = build_tables(tile_weights(load_hdri(hdri_path)))
+    folder.mkdir(parents=True, exist_ok=True)
+    write_float_exr(names["marginal"], marginal)
+    write_float_exr(names["conditional"], conditional)
+    write_float_exr(names["pdf"], density)
+    return {k: str(v) for k, v in names.items()}

@@ -1,0 +1,88 @@
+"""Reading and checking an equirectangular HDRI with OpenImageIO (Blender's bundled module)."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+
+
+def oiio():
+    """Blender's bundled OpenImageIO (never the PyPI wheel: it breaks OSL compilation)."""
+    try:
+        import OpenImageIO
+    except ImportError:
+        import bpy
+        bpy.utils.expose_bundled_modules()
+        import OpenImageIO
+    return OpenImageIO
+
+
+def file_hash(path: Path) -> str:
+    """Content hash of a file (the cache key of everything derived from it)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()[:24]
+
+
+def load_hdri(path) -> np.ndarray:
+    """The HDRI as a float32 array (height, width, 3), scene-linear.
+
+    Raises UserError when the file is missing or unreadable, not floating point, has fewer
+    than 3 channels, is not 2:1 equirectangular, or holds NaN/Inf values.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"HDRI not found: {path} (give an existing equirectangular .exr or .hdr file)")
+    OIIO = oiio()
+    inp = OIIO.ImageInput.open(str(path))
+    if inp is None:
+        raise UserError(f"HDRI unreadable: {path} ({OIIO.geterror().strip() or 'unknown format'})")
+    try:
+        spec = inp.spec()
+        if spec.format.basetype not in (OIIO.FLOAT, OIIO.HALF, OIIO.DOUBLE):
+            raise UserError(f"HDRI is not floating point: {path} has {spec.format} pixels; "
+                            "use a scene-linear float image (.exr or .hdr)")
+        if spec.nchannels < 3:
+            raise UserError(f"HDRI has {spec.nchannels} channel(s): {path}; an RGB image is needed")
+        if spec.width != 2 * spec.height:
+            raise UserError(f"HDRI is {spec.width}x{spec.height}, not 2:1 equirectangular: {path}")
+        pixels = inp.read_image(0, 0, 0, 3, OIIO.FLOAT)
+    finally:
+        inp.close()
+    if pixels is None:
+        raise UserError(f"HDRI unreadable: {path} (the pixel data is corrupt or truncated)")
+    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
+    bad = ~np.isfinite(pixels)
+    if bad.any():
+        raise UserError(f"HDRI holds {int(bad.any(axis=2).sum())} NaN/Inf pixel(s): {path}; "
+                        "repair the image first")
+    # Small negative texels are compression noise (7 of Blender's 8 bundled HDRIs have some);
+    # Blender renders them as they are, and so do we. Importance weights clamp them to 0.
+    return pixels
+
+
+def write_float_exr(path: Path, pixels: np.ndarray) -> None:
+    """Write a float32 EXR whole or not at all (temporary name, then rename)."""
+    OIIO = oiio()
+    pixels = np.ascontiguousarray(pixels, dtype=np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[:, :, None]
+    h, w, c = pixels.shape
+    tmp = path.with_name(path.name + ".partial.exr")
+    spec = OIIO.ImageSpec(w, h, c, OIIO.FLOAT)
+    spec.attribute("compression", "zip")
+    out = OIIO.ImageOutput.create(str(tmp))
+    if out is None or not out.open(str(tmp), spec):
+        raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+    ok = out.write_image(pixels)
+    out.close()
+    if not ok:
+        tmp.unlink(missing_ok=True)
+        raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+    tmp.replace(path)

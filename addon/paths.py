@@ -1,0 +1,37 @@
+"""Where the add-on's own files are read from, and where it may write."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+PACKAGE_ROOT = Path(__file__).resolve().parent.parent     # the extension / repository root
+OSL_DIR = PACKAGE_ROOT / "osl"
+
+
+def cache_dir() -> Path:
+    """A writable cache folder (never the add-on's install folder, which may be read-only).
+
+    Order: $CTLAB_CACHE; the extension's user folder when running as an installed
+    extension; $XDG_CACHE_HOME/cook-torrance-lab; ~/.cache/cook-torrance-lab.
+    """
+    env = os.environ.get("CTLAB_CACHE")
+    if env:
+        path = Path(env)
+    else:
+        path = None
+        package = __package__.rpartition(".")[0] if __package__ else ""
+        if package.startswith("bl_ext."):
+            import bpy
+            path = Path(bpy.utils.extension_path_user(package, path="cache", create=True))
+        if path is None:
+            base = os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache")
+            path = Path(base) / "cook-torrance-lab"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def bundled_hdri(name: str = "forest") -> Path:
+    """One of Blender's bundled CC0 HDRIs (studiolights/world/<name>.exr)."""
+    import bpy
+    return Path(bpy.utils.system_resource('DATAFILES', path="studiolights/world")) / f"{name}.exr"

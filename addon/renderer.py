@@ -1,0 +1,137 @@
+"""Rendering a scene with headless Cycles and writing render.exr, render.png and scene.json.
+
+- The EXR holds the raw float view values (RGB, 32-bit, scene-linear).
+- The PNG is for people: Standard view transform for term views, AgX for lighting views.
+- Term views are rendered at pixel centres with no filter jitter (a box filter of width 0.01
+  puts every sample at the pixel centre), one sample: each pixel is one exact shading point.
+- Outputs are written to temporary names and renamed when all are whole.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import bpy
+
+from .errors import UserError
+from .params import AGX_VIEWS, EXACT_VIEWS
+
+OUTPUT_FILES = ("render.exr", "render.png", "scene.json")
+
+
+def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed: int = 0) -> None:
+    """Cycles on the CPU; OSL for the Cook-Torrance shader; no denoiser, no adaptive sampling
+    and no clamping, so renders converge to the integral they estimate."""
+    scene.render.engine = 'CYCLES'
+    cy = scene.cycles
+    cy.device = 'CPU'
+    cy.shading_system = (shader == "osl")
+    cy.use_denoising = False
+    cy.use_adaptive_sampling = False
+    cy.sample_clamp_direct = 0.0
+    cy.sample_clamp_indirect = 0.0
+    cy.seed = seed
+    cy.use_animated_seed = False
+    if shader == "osl" and view in EXACT_VIEWS:
+        cy.samples = 1
+        cy.pixel_filter_type = 'BOX'
+        cy.filter_width = 0.01
+    else:
+        cy.samples = samples
+        cy.pixel_filter_type = 'BLACKMAN_HARRIS'
+        cy.filter_width = 1.5
+    if shader == "osl":
+        cy.max_bounces = 0             # the shader integrates the lighting itself
+    scene.render.film_transparent = False
+    scene.render.use_persistent_data = False
+    vs = scene.view_settings
+    vs.view_transform = 'AgX' if view in AGX_VIEWS else 'Standard'
+    vs.look = 'None'
+    vs.exposure = 0.0
+    vs.gamma = 1.0
+    scene.display_settings.display_device = 'sRGB'
+
+
+@contextlib.contextmanager
+def quiet(log_path: Path | None):
+    """Send Blender's C-level stdout (per-tile progress lines) to a log file."""
+    if log_path is None:
+        yield
+        return
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with open(log_path, "ab") as log:
+        os.dup2(log.fileno(), 1)
+        try:
+            yield
+        finally:
+            sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def check_writable(out_dir: Path) -> Path:
+    """Create the output folder if needed and prove it is writable, before any work."""
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".ctlab-probe-"):
+            pass
+    except OSError as exc:
+        raise UserError(f"output folder not writable: {out_dir} ({exc.strerror or exc}); "
+                        "choose another --out") from None
+    return out_dir
+
+
+def _save(scene, image, path: Path, fmt: str) -> None:
+    settings = scene.render.image_settings
+    if fmt == "exr":
+        settings.file_format = 'OPEN_EXR'
+        settings.color_mode = 'RGB'
+        settings.color_depth = '32'
+        settings.exr_codec = 'ZIP'
+    else:
+        settings.file_format = 'PNG'
+        settings.color_mode = 'RGB'
+        settings.color_depth = '8'
+        settings.compression = 15
+    image.save_render(str(path), scene=scene)
+
+
+def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=None) -> dict:
+    """Render the scene's camera and write the three outputs into ``out_dir`` whole."""
+    out_dir = check_writable(out_dir)
+    start = time.perf_counter()
+    with quiet(log_path):
+        bpy.ops.render.render(write_still=False)
+    elapsed = time.perf_counter() - start
+    result = bpy.data.images.get("Render Result")
+    if result is None:
+        raise UserError("Cycles produced no image (see the log)")
+    token = f".partial-{os.getpid()}"
+    staged = {name: out_dir / f"{name}{token}{Path(name).suffix}" for name in OUTPUT_FILES}
+    try:
+        with quiet(log_path):
+            _save(scene, result, staged["render.exr"], "exr")
+            _save(scene, result, staged["render.png"], "png")
+        description = dict(description, render_seconds=round(elapsed, 3),
+                           samples=scene.cycles.samples,
+                           view_transform=scene.view_settings.view_transform,
+                           blender=bpy.app.version_string)
+        staged["scene.json"].write_text(json.dumps(description, indent=2))
+        for name, tmp in staged.items():
+            if not tmp.is_file():
+                raise UserError(f"Blender did not write {name} into {out_dir}")
+        for name, tmp in staged.items():
+            tmp.replace(out_dir / name)
+    finally:
+        for tmp in staged.values():
+            if tmp.exists():
+                tmp.unlink()
+    return description

@@ -1,0 +1,89 @@
+"""report.html: Cook-Torrance | Principled | difference, per-cell numbers, the parameters."""
+
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+
+
+def _table(metrics: dict) -> str:
+    rows = []
+    for c in metrics["cells"]:
+        rows.append(
+            f"<tr><td>{c['row']}</td><td>{c['col']}</td><td>{c['metallic']:.3f}</td>"
+            f"<td>{c['smoothness']:.3f}</td><td>{c['mae']:.4f}</td><td>{c['rmse']:.4f}</td>"
+            f"<td>{c['psnr_db']:.2f}</td><td>{c['ciede2000_mean']:.2f}</td>"
+            f"<td>{c['ciede2000_p95']:.2f}</td></tr>")
+    o = metrics["overall"]
+    rows.append(f"<tr class='all'><td colspan=4>all cells</td><td>{o['mae']:.4f}</td>"
+                f"<td>{o['rmse']:.4f}</td><td>{o['psnr_db']:.2f}</td>"
+                f"<td>{o['ciede2000_mean']:.2f}</td><td>{o['ciede2000_p95']:.2f}</td></tr>")
+    head = ("<tr><th>row</th><th>col</th><th>metallic</th><th>smoothness</th><th>MAE</th>"
+            "<th>RMSE</th><th>PSNR (dB)</th><th>&Delta;E00 mean</th><th>&Delta;E00 p95</th></tr>")
+    return f"<table>{head}{''.join(rows)}</table>"
+
+
+def _grid(metrics: dict, key: str, fmt: str) -> str:
+    """The per-cell metric laid out as the sphere matrix."""
+    cells = metrics["cells"]
+    rows = max(c["row"] for c in cells) + 1
+    cols = max(c["col"] for c in cells) + 1
+    value = {(c["row"], c["col"]): c[key] for c in cells}
+    smooth = {c["row"]: c["smoothness"] for c in cells}
+    metal = {c["col"]: c["metallic"] for c in cells}
+    head = "<tr><th>smoothness \\ metallic</th>" + "".join(
+        f"<th>{metal[j]:.2f}</th>" for j in range(cols)) + "</tr>"
+    body = "".join("<tr><th>" + f"{smooth[i]:.2f}</th>" + "".join(
+        f"<td>{format(value[(i, j)], fmt)}</td>" for j in range(cols)) + "</tr>"
+        for i in range(rows))
+    return f"<table class='grid'>{head}{body}</table>"
+
+
+def write_report(out_dir: Path, ct_dir: str, ref_dir: str, cmp_dir: str, metrics: dict,
+                 scene: dict, timings: dict) -> Path:
+    """Write report.html into out_dir (whole or not at all); image paths are relative."""
+    params = {k: scene[k] for k in ("rows", "cols", "width", "height", "samples", "hdri",
+                                    "hdri_strength", "hdri_rotation_deg", "sun", "model",
+                                    "principled_distribution", "blender") if k in scene}
+    o = metrics["overall"]
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: sphere matrix report</title>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
+.row {{ display: flex; gap: 1em; flex-wrap: wrap; }}
+figure {{ margin: 0; }} figure img {{ width: 100%; max-width: 512px; image-rendering: pixelated; }}
+figcaption {{ text-align: center; font-weight: 600; }}
+table {{ border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }}
+td, th {{ border: 1px solid #ccc; padding: 2px 8px; text-align: right; }}
+tr.all td {{ font-weight: 600; }} pre {{ background: #f4f4f4; padding: 1em; }}
+</style></head><body>
+<h1>Cook-Torrance Lab: sphere matrix</h1>
+<p>Columns: metallic 0 &rarr; 1 (left to right). Rows: smoothness 1 &rarr; 0 (top to bottom).
+Both renders use the same world HDRI and Sun; the Cook-Torrance render is the OSL shader
+(shared/SPEC.md), the reference is Blender's Principled BSDF path-traced by Cycles.</p>
+<div class="row">
+<figure><img src="{html.escape(ct_dir)}/render.png" alt="Cook-Torrance"><figcaption>Cook-Torrance (OSL)</figcaption></figure>
+<figure><img src="{html.escape(ref_dir)}/render.png" alt="Principled"><figcaption>Principled BSDF</figcaption></figure>
+<figure><img src="{html.escape(cmp_dir)}/diff.png" alt="difference"><figcaption>&Delta;E00 (black 0, white &ge; {metrics['heatmap_max_ciede2000']:g})</figcaption></figure>
+</div>
+<h2>Summary</h2>
+<p>Over all sphere pixels: mean &Delta;E00 <b>{o['ciede2000_mean']:.2f}</b>,
+PSNR {o['psnr_db']:.2f} dB (displayed colours), MAE {o['mae']:.4f} and RMSE {o['rmse']:.4f}
+(linear values). Render times: {html.escape(', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))}.</p>
+<p>Differences are expected: the seed model uses the Cook-Torrance G and Disney diffuse, with
+no multiple scattering, while Principled uses height-correlated Smith G, multiscatter GGX and
+energy-conserving layering.</p>
+<h2>Mean &Delta;E00 per cell</h2>{_grid(metrics, 'ciede2000_mean', '.2f')}
+<h2>Per-cell metrics</h2>{_table(metrics)}
+<p>MAE and RMSE compare the raw float values (render.exr); PSNR and &Delta;E00 (CIEDE2000)
+compare the displayed colours (render.png, AgX view transform). Cells use the pixels within
+95% of each sphere's radius.</p>
+<h2>Parameters</h2><pre>{html.escape(json.dumps(params, indent=2))}</pre>
+</body></html>
+"""
+    path = Path(out_dir) / "report.html"
+    tmp = path.with_name("report.html.partial")
+    tmp.write_text(page, encoding="utf-8")
+    tmp.replace(path)
+    return path

@@ -1,0 +1,25 @@
+"""Cook-Torrance Lab command line.
+
+    python scripts/ctlab.py render --shader osl --out DIR [...]   (bpy as a Python module)
+    blender -b -P scripts/ctlab.py -- render --shader osl --out DIR [...]
+"""
+
+import os
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+import bpy  # noqa: E402  (Blender as a module, or the running Blender)
+
+bpy.utils.expose_bundled_modules()
+
+from addon.cli import main  # noqa: E402
+
+if __name__ == "__main__":
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    code = main(argv)
+    if bpy.app.background and not bpy.app.binary_path.endswith("python"):
+        sys.stdout.flush()
+    sys.exit(code)
