@@ -69,7 +69,7 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
 
 def matrix_settings(args, shader: str, view: str):
     from .scene_builder import MatrixSettings
-    if view not in VIEWS:
+    if view not in VIEWS and view != "all":
         raise UserError(f"unknown view {view!r}; choose one of: {', '.join(VIEWS)}")
     rows, cols = parse_grid(args.grid)
     if args.samples < 1 or args.samples > 65536:
@@ -91,26 +91,48 @@ def matrix_settings(args, shader: str, view: str):
     return s
 
 
-def render_one(settings, out_dir: Path, samples: int, verbose: bool) -> dict:
-    """Build the matrix in a fresh empty scene and render it into out_dir."""
+def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=None) -> dict:
+    """Build the matrix once in a fresh empty scene and render each view into its folder
+    (``{view: folder}``); the shader compiles once. Returns the last scene description."""
     import bpy
-    from . import renderer, scene_builder
-    renderer.check_writable(out_dir)
+    from . import materials, renderer, scene_builder
+    for out_dir in out_dirs.values():
+        renderer.check_writable(out_dir)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     description = scene_builder.build_matrix(scene, settings)
-    renderer.configure(scene, settings.shader, settings.model.view, samples, settings.model.seed)
-    log = None if verbose else Path(out_dir).resolve().parent / f".{Path(out_dir).name}-blender.log"
-    return renderer.render(scene, out_dir, description, log)
+    mat = next((m for m in bpy.data.materials if m.get(scene_builder.TAG)), None)
+    for i, (view, out_dir) in enumerate(out_dirs.items()):
+        settings.model.view = view
+        description["model"] = settings.model.as_dict()
+        if settings.shader == "osl":
+            materials.set_options(mat, settings.model)
+        renderer.configure(scene, settings.shader, view, samples, settings.model.seed)
+        log = None if verbose else (Path(out_dir).resolve().parent
+                                    / f".{Path(out_dir).name}-blender.log")
+        description = renderer.render(scene, out_dir, description, log)
+        if report:
+            report(i, view, description)
+    return description
+
+
+def render_one(settings, out_dir: Path, samples: int, verbose: bool) -> dict:
+    """Build the matrix in a fresh empty scene and render its view into out_dir."""
+    return render_views(settings, {settings.model.view: Path(out_dir)}, samples, verbose)
 
 
 def cmd_render(args) -> None:
-    settings = matrix_settings(args, args.shader, args.view)
+    views = VIEWS if args.view == "all" else (args.view,)
+    settings = matrix_settings(args, args.shader, views[0])
     out = Path(args.out)
+    dirs = {v: out / v for v in views} if args.view == "all" else {views[0]: out}
     progress(f"rendering {settings.shader} view={args.view} grid={args.grid} size={args.size} "
              f"samples={args.samples} -> {out}")
-    d = render_one(settings, out, args.samples, args.verbose)
-    progress(f"done in {d['render_seconds']:.1f} s: {out / 'render.exr'}, render.png, scene.json")
+
+    def report(i, view, d):
+        progress(f"[{i + 1}/{len(dirs)}] {view}: {d['render_seconds']:.1f} s -> {dirs[view]}")
+    render_views(settings, dirs, args.samples, args.verbose, report)
+    progress("done: render.exr, render.png and scene.json in each folder")
 
 
 def cmd_compare(args) -> None:
@@ -156,7 +178,8 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="render the sphere matrix with one shader and view")
     r.add_argument("--shader", required=True, choices=("osl", "principled"))
     r.add_argument("--out", required=True, help="output folder")
-    r.add_argument("--view", default="full", help="|".join(VIEWS))
+    r.add_argument("--view", default="full",
+                   help="|".join(VIEWS) + "|all (all: one sub-folder per view)")
     add_scene_arguments(r)
     r.set_defaults(func=cmd_render)
     c = sub.add_parser("compare", help="compare two render folders")

@@ -26,15 +26,20 @@ from addon.scene_builder import MatrixSettings  # noqa: E402
 
 
 def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96, **kw):
-    """Render the sphere matrix with the real pipeline; returns (linear image, scene dict)."""
+    """Render the sphere matrix with the real pipeline; returns (linear image, scene dict).
+    With a tuple of views: ({view: image}, scene), the scene built and compiled once."""
     model_keys = ("g_model", "diffuse_model", "units", "ibl", "env_samples", "env_visibility",
                   "sun_shadow", "seed")
-    model = ModelOptions(view=view, **{k: kw.pop(k) for k in model_keys if k in kw})
+    views = view if isinstance(view, tuple) else (view,)
+    model = ModelOptions(view=views[0], **{k: kw.pop(k) for k in model_keys if k in kw})
     s = MatrixSettings(rows=grid[0], cols=grid[1], width=size, height=size, shader=shader,
                        model=model, **kw)
-    cli.render_one(s, Path(out_dir), samples, verbose=False)
-    return compare.read_image(Path(out_dir) / "render.exr"), json.loads(
-        (Path(out_dir) / "scene.json").read_text())
+    dirs = {v: Path(out_dir) / v for v in views} if isinstance(view, tuple) else \
+        {view: Path(out_dir)}
+    cli.render_views(s, dirs, samples, verbose=False)
+    images = {v: compare.read_image(d / "render.exr") for v, d in dirs.items()}
+    scene = json.loads((next(iter(dirs.values())) / "scene.json").read_text())
+    return (images if isinstance(view, tuple) else images[view]), scene
 
 
 def sphere_pixels(scene, cell, margin_px=1.0):

@@ -40,9 +40,8 @@ def rendered(request, tmp_path_factory):
     model = CASES[request.param]
     base = tmp_path_factory.mktemp(f"views-{request.param}")
     kw = dict(grid=(3, 4), size=128, sun_to_light=(-0.3, -0.6, 0.74), **model)
-    normal, scene = render(base / "normal", view="normal", **kw)
-    images = {v: render(base / v, view=v, **kw)[0] for v in VIEWS}
-    return model, normal, scene, images
+    images, scene = render(base, view=("normal",) + VIEWS, **kw)
+    return model, images.pop("normal"), scene, images
 
 
 def test_normal_view_is_unit_and_faces_camera(rendered):

@@ -1,0 +1,65 @@
+"""The repository root is the extension: Blender's own tool builds and validates the zip; it
+installs and enables headless into a temporary user folder, and its operator builds the matrix
+there. Rebuilding never deletes a user's objects."""
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import bpy
+
+from conftest import ROOT
+
+BLENDER_EXT = (Path(bpy.utils.resource_path('LOCAL')) / "scripts" / "addons_core" / "bl_pkg"
+               / "cli" / "blender_ext.py")
+
+
+def _ext(*args):
+    return subprocess.run([sys.executable, str(BLENDER_EXT), *map(str, args)],
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
+    dist = tmp_path / "dist"
+    dist.mkdir()
+    p = _ext("build", "--source-dir", ROOT, "--output-dir", dist)
+    assert p.returncode == 0, p.stdout + p.stderr
+    zips = list(dist.glob("cook_torrance_lab-*.zip"))
+    assert len(zips) == 1
+    p = _ext("validate", zips[0])
+    assert p.returncode == 0 and "Success" in p.stdout, p.stdout + p.stderr
+    import zipfile
+    names = zipfile.ZipFile(zips[0]).namelist()
+    assert "osl/cook_torrance.osl" in names and "__init__.py" in names
+    assert not any(n.startswith(("tests/", "scripts/", ".venv", ".ci")) for n in names)
+
+    script = textwrap.dedent(f"""
+        import bpy
+        bpy.utils.expose_bundled_modules()
+        bpy.ops.extensions.package_install_files(filepath={str(zips[0])!r}, repo="user_default",
+                                                 enable_on_install=True)
+        assert "bl_ext.user_default.cook_torrance_lab" in bpy.context.preferences.addons
+        user = bpy.data.objects.new("User Empty", None)
+        bpy.context.scene.collection.objects.link(user)
+        for _ in range(2):
+            assert bpy.ops.ctlab.build_sphere_matrix(rows=2, cols=3, resolution=64) == {{'FINISHED'}}
+        tagged = [o for o in bpy.data.objects if o.get("ctlab_matrix")]
+        assert len([o for o in tagged if o.type == 'MESH']) == 6, len(tagged)
+        assert "User Empty" in bpy.data.objects
+        mat = bpy.data.materials["Cook-Torrance Matrix"]
+        node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeScript")
+        assert any(s.identifier == "albedo" for s in node.inputs), "the OSL shader has no sockets"
+        try:                       # headless, an operator's ERROR report raises RuntimeError
+            bpy.ops.ctlab.build_sphere_matrix(hdri="/nonexistent.exr")
+            raise AssertionError("a missing HDRI was accepted")
+        except RuntimeError as exc:
+            assert "HDRI not found: /nonexistent.exr" in str(exc), exc
+        assert len([o for o in bpy.data.objects if o.get("ctlab_matrix")]) == 8
+        print("EXTENSION-OK")
+    """)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
+                       timeout=300)
+    assert "EXTENSION-OK" in p.stdout, p.stdout[-2000:] + p.stderr[-2000:]
