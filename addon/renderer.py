@@ -104,6 +104,36 @@ def _save(scene, image, path: Path, fmt: str) -> None:
     image.save_render(str(path), scene=scene)
 
 
+def _seconds(stamp: str) -> float:
+    """'MM:SS.ss' or 'HH:MM:SS.ss' (Cycles' metadata) to seconds."""
+    total = 0.0
+    for part in stamp.split(":"):
+        total = total * 60 + float(part)
+    return total
+
+
+def cycles_times(exr_path: Path) -> dict:
+    """Cycles' own synchronisation (scene and shader compile) and render times, from the
+    metadata it writes into the image."""
+    from .hdri import oiio
+    OIIO = oiio()
+    inp = OIIO.ImageInput.open(str(exr_path))
+    if inp is None:
+        return {}
+    attrs = {a.name: a.value for a in inp.spec().extra_attribs}
+    inp.close()
+    out = {}
+    for key, name in (("sync_seconds", "synchronization_time"),
+                      ("cycles_render_seconds", "render_time")):
+        value = next((v for k, v in attrs.items() if k.endswith("." + name)), None)
+        if isinstance(value, str):
+            try:
+                out[key] = _seconds(value)
+            except ValueError:
+                pass
+    return out
+
+
 def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=None) -> dict:
     """Render the scene's camera and write the three outputs into ``out_dir`` whole."""
     out_dir = check_writable(out_dir)
@@ -121,6 +151,7 @@ def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=No
             _save(scene, result, staged["render.exr"], "exr")
             _save(scene, result, staged["render.png"], "png")
         description = dict(description, render_seconds=round(elapsed, 3),
+                           **cycles_times(staged["render.exr"]),
                            samples=scene.cycles.samples,
                            view_transform=scene.view_settings.view_transform,
                            blender=bpy.app.version_string)
