@@ -36,7 +36,9 @@ def terms(n, v, l, albedo, metallic, smoothness, g_model="cook_torrance", diffus
     if g_model == "cook_torrance":
         G = np.minimum(1, np.minimum(2 * NdotH * NdotV / VdotH, 2 * NdotH * NdotL / VdotH))
     else:
-        lam = lambda c: (-1 + np.sqrt(1 + a2 * (1 - c ** 2) / np.maximum(c, 1e-300) ** 2)) / 2
+        def lam(c):                      # Smith Lambda for GGX; c = 0 gives Lambda = inf, G = 0
+            with np.errstate(divide="ignore"):
+                return (-1 + np.sqrt(1 + a2 * (1 - c ** 2) / c ** 2)) / 2
         G = 1 / (1 + lam(NdotV) + lam(NdotL))
     with np.errstate(divide="ignore", invalid="ignore"):
         fs = D[..., None] * F * G[..., None] / (4 * NdotL * NdotV)[..., None]
