@@ -1,15 +1,17 @@
 """The command line: ``render``, ``compare`` and ``matrix`` (scripts/ctlab.py is the entry).
 
 Bad input gets a one-line message naming the problem and exit status 2, and nothing is
-written. Blender's own per-tile output goes to a log file in the output folder's parent
-temp area; the command prints its own progress.
+written. Blender's own per-tile output goes to a log file in the system temp folder; the command
+prints its own progress.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -17,6 +19,8 @@ from .errors import UserError
 from .params import DIFFUSE_MODELS, G_MODELS, IBL_MODES, UNITS, VIEWS, ModelOptions
 
 EXIT_BAD_INPUT = 2
+# Blender's own per-tile output goes here, never into the user's folders (--verbose shows it).
+BLENDER_LOG = Path(tempfile.gettempdir()) / f"ctlab-blender-{os.getpid()}.log"
 
 
 def parse_vector(text: str, n: int, what: str) -> tuple:
@@ -108,8 +112,7 @@ def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=N
         if settings.shader == "osl":
             materials.set_options(mat, settings.model)
         renderer.configure(scene, settings.shader, view, samples, settings.model.seed)
-        log = None if verbose else (Path(out_dir).resolve().parent
-                                    / f".{Path(out_dir).name}-blender.log")
+        log = None if verbose else BLENDER_LOG
         description = renderer.render(scene, out_dir, description, log)
         if report:
             report(i, view, description)

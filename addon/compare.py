@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from .hdri import oiio, write_float_exr  # noqa: F401  (write_float_exr used by callers)
+from .hdri import oiio
 
 CELL_FRACTION = 0.95
 
