@@ -16,7 +16,8 @@ import time
 from pathlib import Path
 
 from .errors import UserError
-from .params import DIFFUSE_MODELS, G_MODELS, IBL_MODES, UNITS, VIEWS, ModelOptions
+from .params import (DIFFUSE_MODELS, G_MODELS, IBL_MODES, MATRIX_ALBEDO, UNITS, VIEWS,
+                     ModelOptions)
 
 EXIT_BAD_INPUT = 2
 # Blender's own per-tile output goes here, never into the user's folders (--verbose shows it).
@@ -55,7 +56,8 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hdri-rotation", type=float, default=0.0, help="degrees about Z")
     p.add_argument("--sun-dir", default="-0.45,-0.55,0.70", help="X,Y,Z toward the Sun")
     p.add_argument("--sun-strength", type=float, default=1.0, help="Sun irradiance (W/m^2)")
-    p.add_argument("--albedo", default="1.0,0.766,0.336", help="R,G,B linear albedo (gold)")
+    p.add_argument("--albedo", default=",".join(map(str, MATRIX_ALBEDO)),
+                   help="R,G,B linear albedo (default: gold)")
     p.add_argument("--ibl", default=IBL_MODES[0], help="|".join(IBL_MODES))
     p.add_argument("--g", dest="g_model", default=G_MODELS[0], help="|".join(G_MODELS))
     p.add_argument("--diffuse", dest="diffuse_model", default=DIFFUSE_MODELS[0],
@@ -106,13 +108,13 @@ def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=N
     scene = bpy.context.scene
     description = scene_builder.build_matrix(scene, settings)
     mat = next((m for m in bpy.data.materials if m.get(scene_builder.TAG)), None)
+    log = None if verbose else BLENDER_LOG
     for i, (view, out_dir) in enumerate(out_dirs.items()):
         settings.model.view = view
         description["model"] = settings.model.as_dict()
         if settings.shader == "osl":
             materials.set_options(mat, settings.model)
         renderer.configure(scene, settings.shader, view, samples, settings.model.seed)
-        log = None if verbose else BLENDER_LOG
         description = renderer.render(scene, out_dir, description, log)
         if report:
             report(i, view, description)

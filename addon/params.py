@@ -16,6 +16,7 @@ INPUT_RANGES = {
     "smoothness": (0.0, 1.0, 0.5),
 }
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
+MATRIX_ALBEDO = (1.0, 0.766, 0.336)    # gold: metals show their colour in the matrix
 
 # --- Model switches (SPEC "Optional model switches"); the first is the default.
 G_MODELS = ("cook_torrance", "smith_ggx_correlated")

@@ -6,7 +6,8 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from .errors import UserError
-from .params import VIEWS, ModelOptions
+from . import osl_shader
+from .params import MATRIX_ALBEDO, VIEWS, ModelOptions
 from .scene_builder import MAX_GRID, MatrixSettings, build_matrix
 
 _DEFAULTS = MatrixSettings()
@@ -24,7 +25,7 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
     spacing: FloatProperty(name="Spacing", default=_DEFAULTS.spacing, min=0.85, max=10,
                            unit='LENGTH', description="Distance between sphere centres")
     albedo: FloatVectorProperty(name="Albedo", subtype='COLOR', size=3, min=0, max=1,
-                                default=(1.0, 0.766, 0.336))
+                                default=MATRIX_ALBEDO)
     hdri: StringProperty(name="HDRI", subtype='FILE_PATH', default="",
                          description="Equirectangular HDRI; empty: Blender's bundled forest.exr")
     hdri_strength: FloatProperty(name="HDRI Strength", default=1.0, min=0, soft_max=10)
@@ -82,10 +83,7 @@ CLASSES = (CTLAB_OT_build_sphere_matrix, CTLAB_PT_sidebar)
 
 
 def register():
-    try:
-        import oslquery  # noqa: F401
-    except ImportError:
-        bpy.utils.expose_bundled_modules()
+    osl_shader.ensure_oslquery()
     for cls in CLASSES:
         bpy.utils.register_class(cls)
 
