@@ -2,6 +2,8 @@
 
 Metrics (per cell over the pixels inside 0.95 of the sphere radius, and over all cells):
 - MAE and RMSE of the raw float values (render.exr, RGB);
+- the relative luminance error of the cell's mean: (Y_a - Y_b) / Y_b, Y = Rec. 709 luminance
+  of the raw values (signed: positive where A is brighter);
 - PSNR of the displayed colours (render.png, 0..1, peak 1);
 - mean CIEDE2000 of the displayed colours (sRGB -> CIE Lab, D65), after Sharma, Wu & Dalal,
   "The CIEDE2000 color-difference formula: implementation notes", 2005.
@@ -17,6 +19,7 @@ import numpy as np
 
 from .errors import UserError
 from .hdri import oiio
+from .params import REC709_LUMINANCE
 
 CELL_FRACTION = 0.95
 
@@ -112,9 +115,12 @@ def cell_mask(shape, cell: dict, fraction: float = CELL_FRACTION) -> np.ndarray:
 def metrics(lin_a, lin_b, disp_a, disp_b, de, mask) -> dict:
     d = (lin_a[mask] - lin_b[mask]).astype(np.float64)
     mse_disp = float(np.mean((disp_a[mask].astype(np.float64) - disp_b[mask]) ** 2))
+    y_a = float(np.mean(lin_a[mask] @ np.array(REC709_LUMINANCE)))
+    y_b = float(np.mean(lin_b[mask] @ np.array(REC709_LUMINANCE)))
     return {"pixels": int(mask.sum()),
             "mae": float(np.mean(np.abs(d))),
             "rmse": float(np.sqrt(np.mean(d ** 2))),
+            "rel_luminance_error": (y_a - y_b) / y_b if y_b > 0 else None,
             "psnr_db": float(10 * math.log10(1.0 / mse_disp)) if mse_disp > 0 else float("inf"),
             "ciede2000_mean": float(np.mean(de[mask])),
             "ciede2000_p95": float(np.percentile(de[mask], 95))}

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .hdri import file_hash, load_hdri, write_float_exr
+from .params import REC709_LUMINANCE
 from .paths import cache_dir
 
 TABLE_SIZE = 4096        # M: resolution of the inverse CDFs
@@ -34,7 +35,7 @@ def tile_weights(pixels: np.ndarray, tile: int = TILE) -> np.ndarray:
     h, w, _ = pixels.shape
     t = max(1, min(tile, h // 4))
     rows, cols = h // t, w // t
-    lum = np.maximum(pixels[: rows * t, : cols * t], 0) @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    lum = np.maximum(pixels[: rows * t, : cols * t], 0) @ np.array(REC709_LUMINANCE, dtype=np.float32)
     lum = lum.reshape(rows, t, cols, t).mean(axis=(1, 3)).astype(np.float64)
     theta = (np.arange(rows) + 0.5) / rows * np.pi
     weight = lum * np.sin(theta)[:, None]

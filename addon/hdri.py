@@ -30,12 +30,12 @@ def file_hash(path: Path) -> str:
     return h.hexdigest()[:24]
 
 
-def load_hdri(path) -> np.ndarray:
-    """The HDRI as a float32 array (height, width, 3), scene-linear.
+def read_hdri(path, repair: bool = False):
+    """The HDRI as a float32 array (height, width, 3), scene-linear, and the number of NaN/Inf
+    pixels that were set to 0 (only with ``repair``; otherwise they raise).
 
     Raises UserError when the file is missing or unreadable, not floating point, has fewer
-    than 3 channels, is not 2:1 equirectangular, or holds NaN/Inf values.
-    """
+    than 3 channels or is not 2:1 equirectangular."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"HDRI not found: {path} (give an existing equirectangular .exr or .hdr file)")
@@ -53,18 +53,28 @@ def load_hdri(path) -> np.ndarray:
         if spec.width != 2 * spec.height:
             raise UserError(f"HDRI is {spec.width}x{spec.height}, not 2:1 equirectangular: {path}")
         pixels = inp.read_image(0, 0, 0, 3, OIIO.FLOAT)
+        failed = inp.has_error
+        detail = inp.geterror().strip() if failed else ""
     finally:
         inp.close()
-    if pixels is None:
-        raise UserError(f"HDRI unreadable: {path} (the pixel data is corrupt or truncated)")
+    if pixels is None or failed:
+        raise UserError(f"HDRI unreadable: {path} (the pixel data is corrupt or truncated"
+                        + (f": {detail}" if detail else "") + ")")
     pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
     bad = ~np.isfinite(pixels)
-    if bad.any():
-        raise UserError(f"HDRI holds {int(bad.any(axis=2).sum())} NaN/Inf pixel(s): {path}; "
-                        "repair the image first")
+    count = int(bad.any(axis=2).sum())
+    if count and not repair:
+        raise UserError(f"HDRI holds {count} NaN/Inf pixel(s): {path}; repair the image first")
+    if count:
+        pixels = np.where(bad.any(axis=2, keepdims=True), np.float32(0), pixels)
     # Small negative texels are compression noise (7 of Blender's 8 bundled HDRIs have some);
     # Blender renders them as they are, and so do we. Importance weights clamp them to 0.
-    return pixels
+    return pixels, count
+
+
+def load_hdri(path) -> np.ndarray:
+    """The HDRI's pixels (read_hdri), refusing NaN/Inf: a render would carry them."""
+    return read_hdri(path)[0]
 
 
 def write_float_exr(path: Path, pixels: np.ndarray) -> None:

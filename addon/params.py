@@ -22,7 +22,13 @@ MATRIX_ALBEDO = (1.0, 0.766, 0.336)    # gold: metals show their colour in the m
 G_MODELS = ("cook_torrance", "smith_ggx_correlated")
 DIFFUSE_MODELS = ("disney", "lambert")
 UNITS = ("physical", "unity")
-IBL_MODES = ("reference",)           # split_sum and unity arrive with the bake (issue 3)
+# reference: Monte Carlo against the HDRI; split_sum (Karis 2013) and unity (Unity's
+# reflection-probe approximation) use the files baked by ibl_bake.
+IBL_MODES = ("reference", "split_sum", "unity")
+BAKED_IBL_MODES = ("split_sum", "unity")
+IBL_LABELS = {"reference": ("Reference", "Monte Carlo integration against the HDRI"),
+              "split_sum": ("Split-Sum", "Pre-filtered levels and the DFG table (baked, cached)"),
+              "unity": ("Unity", "Unity's reflection-probe approximation (baked, cached)")}
 
 # --- Views (SPEC "Views"): every implementation offers exactly these.
 LIGHTING_VIEWS = ("full", "direct", "indirect", "direct_diffuse", "direct_specular",
@@ -37,6 +43,8 @@ EXACT_VIEWS = TERM_VIEWS
 # Views whose PNG uses Blender's AgX view transform; the rest use Standard (raw values).
 AGX_VIEWS = ("full", "direct", "indirect", "direct_diffuse", "direct_specular",
              "indirect_diffuse", "indirect_specular")
+
+REC709_LUMINANCE = (0.2126, 0.7152, 0.0722)     # Y of linear Rec. 709 RGB
 
 # --- Derived quantities (SPEC "Derived quantities"; Unity's UnityStandardUtils/BRDF)
 DIELECTRIC_F0 = 0.04

@@ -56,9 +56,10 @@ def terms(n, v, l, albedo, metallic, smoothness, g_model="cook_torrance", diffus
 
 
 def specular_albedo(NdotV, albedo, metallic, smoothness, g_model="cook_torrance", n_theta=800,
-                    n_phi=400):
-    """Directional albedo of f_s: integral of f_s (n.l) over the hemisphere, by brute-force
-    midpoint quadrature in (theta_l, phi_l) with n = z (independent of any sampling code)."""
+                    n_phi=400, term="specular_brdf", diffuse="disney"):
+    """Directional albedo of f_s (or of ``term``): integral of f_s (n.l) over the hemisphere,
+    by brute-force midpoint quadrature in (theta_l, phi_l) with n = z (independent of any
+    sampling code)."""
     theta = (np.arange(n_theta) + 0.5) / n_theta * (np.pi / 2)
     phi = (np.arange(n_phi) + 0.5) / n_phi * 2 * np.pi
     T, P = np.meshgrid(theta, phi, indexing="ij")
@@ -67,6 +68,7 @@ def specular_albedo(NdotV, albedo, metallic, smoothness, g_model="cook_torrance"
     sv = np.sqrt(max(0.0, 1 - NdotV ** 2))
     v = np.array([sv, 0.0, NdotV])
     t = terms(np.broadcast_to(n, l.shape), v, l, np.broadcast_to(albedo, l.shape),
-              np.full(T.shape, metallic), np.full(T.shape, smoothness), g_model=g_model)
+              np.full(T.shape, metallic), np.full(T.shape, smoothness), g_model=g_model,
+              diffuse=diffuse)
     w = (np.cos(T) * np.sin(T))[..., None] * (np.pi / 2 / n_theta) * (2 * np.pi / n_phi)
-    return np.sum(t["specular_brdf"] * w, axis=(0, 1))
+    return np.sum(t[term] * w, axis=(0, 1))

@@ -1,0 +1,358 @@
+"""Split-sum image-based lighting (Karis 2013, "Real Shading in Unreal Engine 4"): the bake.
+
+From a scene-linear equirectangular HDRI this writes, as float EXR:
+
+- ``specular_<m>.exr``, m = 0 .. 6: the radiance pre-filtered with this model's GGX lobe under
+  the split-sum's n = v = r assumption, at perceptual roughness pr_m = m / 6 (Unity's seven
+  reflection-probe mip levels, UNITY_SPECCUBE_LOD_STEPS = 6). With n = v = r and l drawn from
+  D(h)(n.h) the pdf of l is D(h)/4, so Karis's estimator sum L(l)(n.l) / sum (n.l) converges to
+  the normalised convolution
+
+      P(r) = integral L(l) K(r.l) dl / integral K(r.l) dl,   K(mu) = D(h) max(mu, 0),
+      (n.h)^2 = (1 + mu) / 2,
+
+  which is computed here exactly (no sampling, so a bright sun cannot speckle) on a lat-long
+  grid whose resolution falls with the lobe's width. Level 0 (alpha = 0.002, a lobe narrower
+  than a texel of a 2k map) is the source itself.
+- ``irradiance.exr``: E(n) = integral L(l) max(n.l, 0) dl, the cosine convolution (stored as E,
+  so a uniform world of radiance 1 gives pi; Lambert's reflected radiance is diffColor E / pi).
+- ``dfg_<g_model>.exr``: for (n.v, pr) the scale A and bias B of specColor in the directional
+  albedo of f_s, integral f_s (n.l) dl = specColor A + B, with this model's D and G, and in the
+  third channel the Disney-diffuse factor: the cosine-weighted mean over l of Burley's
+  (1 + (fd90 - 1)(1 - n.l)^5)(1 + (fd90 - 1)(1 - n.v)^5) (1 for Lambert).
+  Texel (i, j): n.v = i / (N - 1) (column 0 at n.v = 1e-3), pr = j / (N - 1); row j = 0 is the
+  top of the image. The grid includes both ends (pr = 1 is the matrix's bottom row), so a
+  bilinear lookup at s = (n.v (N - 1) + 0.5) / N, t = (pr (N - 1) + 0.5) / N never clamps.
+
+Convolution with a zonal kernel on a lat-long grid: for an output row at elevation e and a
+source row at e', the kernel depends on the longitude difference alone, so each pair of rows is
+a circular convolution along the row, done with real FFTs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import UserError
+from .hdri import file_hash, load_hdri, write_float_exr
+from .params import G_MODELS, MIN_ALPHA
+from .paths import cache_dir
+
+VERSION = 2
+LEVEL_COUNT = 7
+LEVEL_ROUGHNESS = tuple(m / (LEVEL_COUNT - 1) for m in range(LEVEL_COUNT))
+# Width of each pre-filtered level (0: the source's own); the lobe's half-width spans >= 3 texels.
+LEVEL_WIDTHS = (0, 512, 256, 128, 64, 64, 64)
+IRRADIANCE_WIDTH = 128
+DFG_SIZE = 64
+# Quadrature grid per table entry (GGX inverse CDF, azimuth); Cook-Torrance's min() has kinks
+# in azimuth that need the finer grid. Both stay within 4e-4 of a 16x finer grid.
+DFG_SAMPLES = {"cook_torrance": (256, 128), "smith_ggx_correlated": (256, 64)}
+
+
+def level_file(m: int) -> str:
+    return f"specular_{m}.exr"
+
+
+DFG_MIN_NDOTV = 1e-3
+
+
+def dfg_axis(size: int = DFG_SIZE) -> np.ndarray:
+    """The DFG table's sample positions along both axes: 0 .. 1, ends included."""
+    return np.linspace(0.0, 1.0, size)
+
+
+def dfg_file(g_model: str) -> str:
+    return f"dfg_{g_model}.exr"
+
+
+IRRADIANCE_FILE = "irradiance.exr"
+INFO_FILE = "bake.json"
+
+
+# ---------------------------------------------------------------------------------------
+# The lat-long grid (Blender's Environment Texture: row 0 is the top, elevation +pi/2)
+
+def row_elevations(h: int) -> np.ndarray:
+    """Elevation of each row's centre, top row first."""
+    return np.pi / 2 - (np.arange(h) + 0.5) * np.pi / h
+
+
+def row_solid_angles(h: int, w: int) -> np.ndarray:
+    """Solid angle of one texel in each row: (2 pi / w)(sin e_top - sin e_bottom)."""
+    edges = np.pi / 2 - np.arange(h + 1) * np.pi / h
+    return (2 * np.pi / w) * (np.sin(edges[:-1]) - np.sin(edges[1:]))
+
+
+def _area_resample(a: np.ndarray, n: int, axis: int, weights: np.ndarray | None) -> np.ndarray:
+    """Area-average ``a`` along ``axis`` onto n equal bins (texels are constant over their
+    extent; ``weights`` the measure of each source texel, e.g. its solid angle)."""
+    a = np.moveaxis(a, axis, 0).astype(np.float64)
+    N = a.shape[0]
+    w = np.ones(N) if weights is None else np.asarray(weights, dtype=np.float64)
+    shape = (N,) + (1,) * (a.ndim - 1)
+    cum_a = np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a * w.reshape(shape), axis=0)])
+    cum_w = np.concatenate([[0.0], np.cumsum(w)])
+    x = np.arange(n + 1) * (N / n)
+    i = np.minimum(np.floor(x).astype(int), N - 1)
+    f = (x - i).reshape((n + 1,) + (1,) * (a.ndim - 1))
+    ca = cum_a[i] + f * (a[i] * w[i].reshape((n + 1,) + (1,) * (a.ndim - 1)))
+    cw = cum_w[i] + f.reshape(-1) * w[i]
+    out = (ca[1:] - ca[:-1]) / (cw[1:] - cw[:-1]).reshape((n,) + (1,) * (a.ndim - 1))
+    return np.moveaxis(out.astype(np.float32), 0, axis)
+
+
+def downsample(img: np.ndarray, w: int) -> np.ndarray:
+    """The lat-long image at w x w/2, each texel the solid-angle-weighted mean of the source."""
+    H, W = img.shape[:2]
+    h = w // 2
+    if W == w:
+        return img.astype(np.float32)
+    dw = row_solid_angles(H, W)
+    if H % h == 0 and W % w == 0:               # whole blocks: a weighted block mean
+        fy, fx = H // h, W // w
+        weighted = (img * dw[:, None, None].astype(np.float32)).reshape(h, fy, w, fx, 3)
+        return (weighted.sum(axis=(1, 3)) / (dw.reshape(h, fy).sum(axis=1)[:, None, None] * fx)
+                ).astype(np.float32)
+    return _area_resample(_area_resample(img, h, 0, dw), w, 1, None)
+
+
+# ---------------------------------------------------------------------------------------
+# Zonal convolution
+
+def ggx_kernel(alpha: float):
+    """K(q) = D(h) max(mu, 0) with mu = r.l = 1 - 2q; (n.h)^2 = 1 - q, so the GGX denominator
+    (n.h)^2 (a^2 - 1) + 1 = q + a^2 (1 - q) has no cancellation near the lobe's peak."""
+    a2 = alpha * alpha
+
+    def K(q):
+        d = q + a2 * (1.0 - q)
+        return (a2 / np.pi) / (d * d) * np.maximum(1.0 - 2.0 * q, 0.0)
+    return K
+
+
+def cosine_kernel(q):
+    """K(q) = max(n.l, 0) with n.l = 1 - 2q."""
+    return np.maximum(1.0 - 2.0 * q, 0.0)
+
+
+def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) -> np.ndarray:
+    """out(r) = sum_l K(r.l) L(l) dw_l over the lat-long image src (h, w, 3); divided by
+    sum_l K(r.l) dw_l when ``normalize``. Output on the same grid.
+
+    For rows at elevations e, e' and longitude difference dphi,
+    q = (1 - r.l)/2 = sin^2((e - e')/2) + cos e cos e' sin^2(dphi/2) (no cancellation)."""
+    h, w, _ = src.shape
+    elev = row_elevations(h)
+    dw = row_solid_angles(h, w)
+    sin2_half_dphi = (np.sin(np.pi * np.arange(w) / w) ** 2).astype(np.float32)   # dphi = 2 pi k / w
+    src_hat = np.fft.rfft(src.astype(np.float64) * dw[:, None, None], axis=1)     # (h, f, 3)
+    out = np.empty((h, w, 3), dtype=np.float32)
+    for i0 in range(0, h, chunk):
+        rows = np.arange(i0, min(h, i0 + chunk))
+        de = elev[rows][:, None] - elev[None, :]                                  # (c, h)
+        a = (np.sin(de / 2) ** 2).astype(np.float32)
+        b = (np.cos(elev[rows])[:, None] * np.cos(elev)[None, :]).astype(np.float32)
+        q = a[:, :, None] + b[:, :, None] * sin2_half_dphi[None, None, :]          # (c, h, w)
+        k = kernel(q).astype(np.float32)
+        k_hat = np.fft.rfft(k, axis=2)                                            # (c, h, f)
+        acc = np.einsum("cjf,jfk->cfk", k_hat, src_hat)
+        res = np.fft.irfft(acc, n=w, axis=1)                                      # (c, w, 3)
+        if normalize:
+            total = (k_hat[:, :, 0].real * dw[None, :]).sum(axis=1)               # (c,)
+            res = res / np.maximum(total, 1e-30)[:, None, None]
+        out[rows] = res
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# The DFG table (independent of the HDRI: cached once per model version)
+
+def _alpha(pr):
+    return np.maximum(pr * pr, MIN_ALPHA)
+
+
+def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int):
+    """A(n.v), B(n.v) at one perceptual roughness: integral f_s (n.l) dl = F0 A + B.
+
+    Half vectors h follow D(h)(n.h) (Walter et al. 2007, eq. 35-36: tan^2 theta_h =
+    a^2 u / (1 - u)), so each sample adds F G (v.h) / ((n.h)(n.v)) (Karis 2013), with
+    F = F0 (1 - Fc) + Fc, Fc = (1 - v.h)^5. Quadrature, not sampling: u = 1 - (1 - s)^3 on a
+    midpoint grid in s (fine where the GGX tail meets the horizon), and for each u the
+    azimuths that keep l above the horizon, |phi| < phi_max, where
+    n.l = 2 (v.h)(n.h) - n.v > 0  <=>  cos phi > (n.v / (2 n.h) - (n.v)(n.h)) / (sin_v sin_h);
+    so the integrand has no discontinuity inside the grid. n = z, v in the xz plane."""
+    a = max(pr * pr, MIN_ALPHA)
+    s = (np.arange(nu) + 0.5) / nu
+    u = (1.0 - (1.0 - s) ** 3)[None, :, None]
+    du = (3.0 * (1.0 - s) ** 2)[None, :, None]
+    nv = nv[:, None, None]
+    sv = np.sqrt(1.0 - nv * nv)
+    nh = 1.0 / np.sqrt(1.0 + a * a * u / (1.0 - u))
+    sh = np.sqrt(np.maximum(0.0, 1.0 - nh * nh))
+    num = nv / (2.0 * nh) - nv * nh
+    den = sv * sh
+    c0 = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num < 0, -1.0, 2.0))
+    phi_max = np.where(c0 <= 1.0, np.arccos(np.clip(c0, -1.0, 1.0)), 0.0)
+    phi = ((np.arange(nphi) + 0.5) / nphi)[None, None, :] * phi_max
+    vh = np.clip(sv * sh * np.cos(phi) + nv * nh, 0.0, 1.0)
+    nl = np.clip(2.0 * vh * nh - nv, 0.0, 1.0)
+    if g_model == "smith_ggx_correlated":
+        G = 2.0 * nl * nv / np.maximum(nl * np.sqrt(nv * nv * (1 - a * a) + a * a)
+                                       + nv * np.sqrt(nl * nl * (1 - a * a) + a * a), 1e-30)
+    else:
+        G = np.minimum(1.0, 2.0 * nh * np.minimum(nv, nl) / np.maximum(vh, 1e-12))
+    weight = G * vh / (nh * nv) * du * phi_max / (np.pi * nu * nphi)
+    fc = (1.0 - vh) ** 5
+    return np.sum(weight * (1.0 - fc), axis=(1, 2)), np.sum(weight * fc, axis=(1, 2))
+
+
+def _disney_factor(nv: np.ndarray, pr: float, n: int = 64) -> np.ndarray:
+    """Mean of Burley's (1 + (fd90 - 1)(1 - n.l)^5)(1 + (fd90 - 1)(1 - n.v)^5) over
+    cosine-distributed l (Malley's method, midpoint grid), fd90 = 0.5 + 2 (l.h)^2 pr."""
+    s = ((np.arange(n) + 0.5) / n)[None, :, None]
+    phi = ((np.arange(2 * n) + 0.5) / (2 * n) * 2 * np.pi)[None, None, :]
+    lx, ly, lz = np.sqrt(s) * np.cos(phi), np.sqrt(s) * np.sin(phi), np.sqrt(1.0 - s)
+    nv = nv[:, None, None]
+    hx, hz = lx + np.sqrt(1.0 - nv * nv), lz + nv
+    lh = np.clip((lx * hx + ly * ly + lz * hz) / np.sqrt(hx * hx + ly * ly + hz * hz), 0.0, 1.0)
+    fd90 = 0.5 + 2.0 * lh * lh * pr
+    return np.mean((1 + (fd90 - 1) * (1 - lz) ** 5) * (1 + (fd90 - 1) * (1 - nv) ** 5), axis=(1, 2))
+
+
+def dfg_table(g_model: str, size: int = DFG_SIZE, samples=None) -> np.ndarray:
+    """(size, size, 3) float32: row j is pr = j/(size - 1), column i is n.v = i/(size - 1)
+    (n.v >= DFG_MIN_NDOTV); channels: A, B (specColor scale and bias), the Disney factor."""
+    samples = samples or DFG_SAMPLES[g_model]
+    x = dfg_axis(size)
+    nv = np.maximum(x, DFG_MIN_NDOTV)
+    table = np.zeros((size, size, 3))
+    for j, pr in enumerate(x):
+        table[j, :, 0], table[j, :, 1] = _specular_scale_bias(g_model, nv, pr, *samples)
+        table[j, :, 2] = _disney_factor(nv, pr)
+    return table.astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------
+# The bake: cached by the HDRI's content hash and the bake parameters
+
+def _params_key() -> str:
+    import hashlib
+    sig = json.dumps([VERSION, LEVEL_WIDTHS, IRRADIANCE_WIDTH, DFG_SIZE, DFG_SAMPLES])
+    return hashlib.sha256(sig.encode()).hexdigest()[:8]
+
+
+def _atomic_folder(final: Path, fill) -> None:
+    """Run fill(staging) and rename the staging folder to ``final``: whole or not at all.
+    A failed or interrupted fill leaves nothing behind."""
+    staging = final.with_name(f".{final.name}.partial-{os.getpid()}")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    try:
+        fill(staging)
+        try:
+            staging.rename(final)
+        except OSError:
+            if not final.is_dir():            # another process finished first: keep theirs
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def dfg_path(g_model: str) -> Path:
+    """The DFG table of one G option (independent of the HDRI), built once per cache."""
+    size, samples = DFG_SIZE, DFG_SAMPLES[g_model]
+    path = cache_dir() / f"dfg-v{VERSION}-{g_model}-{size}-{samples[0]}x{samples[1]}.exr"
+    if not path.is_file():
+        write_float_exr(path, dfg_table(g_model))
+    return path
+
+
+def _report(progress, fraction, message):
+    if progress is not None:
+        progress(fraction, message)
+
+
+def bake(hdri_path, progress=None, warn=None) -> Path:
+    """Bake (or find in the cache) the split-sum files for an HDRI; returns their folder.
+
+    ``progress(fraction, message)`` is called as the work advances, ``warn(message)`` for
+    repaired input. Raises UserError for unusable input (hdri.read_hdri)."""
+    from .hdri import read_hdri
+    hdri_path = Path(hdri_path)
+    if not hdri_path.is_file():
+        load_hdri(hdri_path)                    # raises the standard "not found" message
+    folder = cache_dir() / f"ibl-v{VERSION}-{_params_key()}-{file_hash(hdri_path)}"
+    if (folder / INFO_FILE).is_file():
+        _report(progress, 1.0, f"cached: {folder}")
+        return folder
+    start = time.perf_counter()
+    pixels, repaired = read_hdri(hdri_path, repair=True)
+    if repaired and warn is not None:
+        warn(f"{hdri_path} holds {repaired} NaN/Inf pixel(s); they were set to 0 for the bake")
+    dfg = {}
+    for g in G_MODELS:
+        _report(progress, 0.05, f"DFG table ({g})")
+        dfg[g] = dfg_path(g)
+    timings = {}
+
+    def fill(stage: Path):
+        H, W = pixels.shape[:2]
+        sources = {}
+        levels = []
+        for m, pr in enumerate(LEVEL_ROUGHNESS):
+            _report(progress, 0.1 + 0.75 * m / LEVEL_COUNT,
+                    f"specular level {m} (roughness {pr:.3f})")
+            t = time.perf_counter()
+            if m == 0:
+                level = pixels
+            else:
+                w = min(LEVEL_WIDTHS[m], W)
+                if w not in sources:
+                    sources[w] = downsample(pixels, w)
+                level = zonal_convolve(sources[w], ggx_kernel(max(pr * pr, MIN_ALPHA)), True)
+            write_float_exr(stage / level_file(m), level)
+            timings[level_file(m)] = round(time.perf_counter() - t, 3)
+            levels.append({"file": level_file(m), "perceptual_roughness": pr,
+                           "width": level.shape[1], "height": level.shape[0]})
+        _report(progress, 0.9, "irradiance")
+        t = time.perf_counter()
+        w = min(IRRADIANCE_WIDTH, W)
+        src = sources.get(w)
+        if src is None:
+            src = downsample(pixels, w)
+        irr = np.pi * zonal_convolve(src, cosine_kernel, True)     # integral max(n.l,0) dl = pi
+        write_float_exr(stage / IRRADIANCE_FILE, irr)
+        timings[IRRADIANCE_FILE] = round(time.perf_counter() - t, 3)
+        for g, path in dfg.items():
+            shutil.copyfile(path, stage / dfg_file(g))
+        info = {"version": VERSION, "source": str(hdri_path), "source_hash": file_hash(hdri_path),
+                "source_size": [W, H], "repaired_texels": repaired, "levels": levels,
+                "irradiance": {"file": IRRADIANCE_FILE, "width": irr.shape[1],
+                               "height": irr.shape[0], "stores": "E (uniform radiance 1 gives pi)"},
+                "dfg": {g: dfg_file(g) for g in dfg}, "dfg_size": DFG_SIZE,
+                "dfg_axes": "column i: n.v = i/(N-1) (column 0: n.v = 1e-3); row j (top "
+                            "first): pr = j/(N-1); look up at ((x (N-1) + 0.5)/N)",
+                "dfg_channels": ["A (specColor scale)", "B (bias)", "Disney diffuse factor"],
+                "seconds": round(time.perf_counter() - start, 3), "timings": timings}
+        (stage / INFO_FILE).write_text(json.dumps(info, indent=2))
+
+    _atomic_folder(folder, fill)
+    _report(progress, 1.0, f"baked in {time.perf_counter() - start:.2f} s: {folder}")
+    return folder
+
+
+def export(folder: Path, out_dir: Path) -> None:
+    """Copy a bake folder's files into out_dir, each whole or not at all."""
+    from .renderer import check_writable
+    out_dir = check_writable(out_dir)
+    for f in sorted(Path(folder).iterdir()):
+        tmp = out_dir / f".{f.name}.partial"
+        shutil.copyfile(f, tmp)
+        tmp.replace(out_dir / f.name)
