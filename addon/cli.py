@@ -1,4 +1,5 @@
-"""The command line: ``render``, ``compare`` and ``matrix`` (scripts/ctlab.py is the entry).
+"""The command line: ``render``, ``compare``, ``bake`` and ``matrix`` (scripts/ctlab.py is the
+entry).
 
 Bad input gets a one-line message naming the problem and exit status 2, and nothing is
 written. Blender's own per-tile output goes to a log file in the system temp folder; the command
@@ -45,6 +46,14 @@ def progress(message: str) -> None:
     print(f"[ctlab {time.strftime('%H:%M:%S')}] {message}", flush=True)
 
 
+def bake_progress(fraction: float, message: str) -> None:
+    progress(f"  bake {100 * fraction:3.0f}%: {message}")
+
+
+def warn(message: str) -> None:
+    print(f"ctlab: warning: {message}", file=sys.stderr, flush=True)
+
+
 # ---------------------------------------------------------------------------------------
 
 def add_scene_arguments(p: argparse.ArgumentParser) -> None:
@@ -58,7 +67,9 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sun-strength", type=float, default=1.0, help="Sun irradiance (W/m^2)")
     p.add_argument("--albedo", default=",".join(map(str, MATRIX_ALBEDO)),
                    help="R,G,B linear albedo (default: gold)")
-    p.add_argument("--ibl", default=IBL_MODES[0], help="|".join(IBL_MODES))
+    p.add_argument("--ibl", default=IBL_MODES[0],
+                   help="indirect light: " + "|".join(IBL_MODES) + " (split_sum and unity use "
+                        "the files of 'ctlab bake', made and cached on demand)")
     p.add_argument("--g", dest="g_model", default=G_MODELS[0], help="|".join(G_MODELS))
     p.add_argument("--diffuse", dest="diffuse_model", default=DIFFUSE_MODELS[0],
                    help="|".join(DIFFUSE_MODELS))
@@ -97,16 +108,18 @@ def matrix_settings(args, shader: str, view: str):
     return s
 
 
-def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=None) -> dict:
+def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=None,
+                 pixel_centres: bool = False) -> dict:
     """Build the matrix once in a fresh empty scene and render each view into its folder
-    (``{view: folder}``); the shader compiles once. Returns the last scene description."""
+    (``{view: folder}``); the shader compiles once. Returns the last scene description.
+    ``pixel_centres``: every view as one sample at each pixel centre (no anti-aliasing)."""
     import bpy
     from . import materials, renderer, scene_builder
     for out_dir in out_dirs.values():
         renderer.check_writable(out_dir)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    description = scene_builder.build_matrix(scene, settings)
+    description = scene_builder.build_matrix(scene, settings, bake_progress)
     mat = next((m for m in bpy.data.materials if m.get(scene_builder.TAG)), None)
     log = None if verbose else BLENDER_LOG
     for i, (view, out_dir) in enumerate(out_dirs.items()):
@@ -114,7 +127,8 @@ def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=N
         description["model"] = settings.model.as_dict()
         if settings.shader == "osl":
             materials.set_options(mat, settings.model)
-        renderer.configure(scene, settings.shader, view, samples, settings.model.seed)
+        renderer.configure(scene, settings.shader, view, samples, settings.model.seed,
+                           pixel_centres)
         description = renderer.render(scene, out_dir, description, log)
         if report:
             report(i, view, description)
@@ -136,7 +150,7 @@ def cmd_render(args) -> None:
 
     def report(i, view, d):
         progress(f"[{i + 1}/{len(dirs)}] {view}: {d['render_seconds']:.1f} s -> {dirs[view]}")
-    render_views(settings, dirs, args.samples, args.verbose, report)
+    render_views(settings, dirs, args.samples, args.verbose, report, args.pixel_centres)
     progress("done: render.exr, render.png and scene.json in each folder")
 
 
@@ -148,32 +162,65 @@ def cmd_compare(args) -> None:
              f"PSNR {o['psnr_db']:.2f} dB -> {Path(args.out) / 'metrics.json'}, diff.png")
 
 
+def cmd_bake(args) -> None:
+    """Bake the split-sum files of an HDRI (cached by content hash), optionally copied to --out."""
+    from . import ibl_bake
+    from .renderer import check_writable
+    if args.out:
+        check_writable(Path(args.out))
+    progress(f"baking {args.hdri}")
+    folder = ibl_bake.bake(Path(args.hdri), bake_progress, warn)
+    if args.out:
+        ibl_bake.export(folder, Path(args.out))
+        folder = Path(args.out)
+    names = ", ".join(sorted(p.name for p in folder.iterdir() if not p.name.startswith(".")))
+    progress(f"done: {folder}: {names}")
+
+
+# The matrix job's renders: (folder, label, shader, IBL mode).
+MATRIX_RENDERS = (("cook_torrance", "Cook-Torrance (OSL, reference IBL)", "osl", "reference"),
+                  ("principled", "Principled BSDF", "principled", "reference"),
+                  ("split_sum", "Cook-Torrance (OSL, split-sum IBL)", "osl", "split_sum"),
+                  ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity"))
+# Its comparisons: (folder, render, against). The model against Principled; the baked IBL
+# modes against the reference integration (the accuracy study of the split-sum).
+MATRIX_COMPARISONS = (("compare", "cook_torrance", "principled"),
+                      ("compare_split_sum", "split_sum", "cook_torrance"),
+                      ("compare_unity", "unity", "cook_torrance"))
+
+
 def cmd_matrix(args) -> None:
-    """The main job: OSL and Principled renders of the full view, compared, with a report."""
+    """The main job: the OSL shader against Principled BSDF, and the baked IBL modes against
+    the reference integration, compared cell by cell, with a report."""
     from .compare import compare
     from .renderer import check_writable
     from .report import write_report
     out = Path(args.out)
-    ct = matrix_settings(args, "osl", "full")
-    ref = matrix_settings(args, "principled", "full")
+    settings = {}
+    for folder, _, shader, ibl in MATRIX_RENDERS:
+        args.ibl = ibl
+        settings[folder] = matrix_settings(args, shader, "full")
     check_writable(out)
-    steps = 4
-    timings = {}
-    progress(f"[1/{steps}] Cook-Torrance (OSL): grid {args.grid}, {args.size} px, "
-             f"{args.samples} samples, {args.env_samples} env samples")
-    d = render_one(ct, out / "cook_torrance", args.samples, args.verbose)
-    timings["Cook-Torrance (OSL)"] = d["render_seconds"]
-    progress(f"      {d['render_seconds']:.1f} s")
-    progress(f"[2/{steps}] Principled BSDF reference ({args.principled_distribution})")
-    d_ref = render_one(ref, out / "principled", args.samples, args.verbose)
-    timings["Principled"] = d_ref["render_seconds"]
-    progress(f"      {d_ref['render_seconds']:.1f} s")
-    progress(f"[3/{steps}] comparing")
-    metrics = compare(out / "cook_torrance", out / "principled", out / "compare")
-    progress(f"[4/{steps}] writing the report")
-    report = write_report(out, "cook_torrance", "principled", "compare", metrics, d, timings)
-    o = metrics["overall"]
-    progress(f"done: mean CIEDE2000 {o['ciede2000_mean']:.2f}, PSNR {o['psnr_db']:.2f} dB; "
+    steps = len(MATRIX_RENDERS) + 2
+    timings, scenes = {}, {}
+    for i, (folder, label, _, _) in enumerate(MATRIX_RENDERS):
+        progress(f"[{i + 1}/{steps}] {label}: grid {args.grid}, {args.size} px, "
+                 f"{args.samples} samples")
+        scenes[folder] = render_one(settings[folder], out / folder, args.samples, args.verbose)
+        timings[label] = scenes[folder]["render_seconds"]
+        progress(f"      {timings[label]:.1f} s")
+    progress(f"[{steps - 1}/{steps}] comparing")
+    results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
+               for cmp_dir, a, b in MATRIX_COMPARISONS}
+    progress(f"[{steps}/{steps}] writing the report")
+    labels = {folder: label for folder, label, _, _ in MATRIX_RENDERS}
+    report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
+                                for cmp_dir, a, b in MATRIX_COMPARISONS],
+                          scenes["cook_torrance"], timings)
+    de = {cmp_dir: results[cmp_dir]["overall"]["ciede2000_mean"] for cmp_dir in results}
+    progress(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
+             f"(PSNR {results['compare']['overall']['psnr_db']:.2f} dB); split-sum against "
+             f"the reference {de['compare_split_sum']:.2f}, Unity {de['compare_unity']:.2f}; "
              f"open {report}")
 
 
@@ -185,6 +232,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="output folder")
     r.add_argument("--view", default="full",
                    help="|".join(VIEWS) + "|all (all: one sub-folder per view)")
+    r.add_argument("--pixel-centres", action="store_true",
+                   help="every view as one sample at each pixel centre, like the term views "
+                        "(exact per-pixel values, no anti-aliasing; OSL only)")
     add_scene_arguments(r)
     r.set_defaults(func=cmd_render)
     c = sub.add_parser("compare", help="compare two render folders")
@@ -192,6 +242,11 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("dir_b")
     c.add_argument("--out", required=True, help="output folder for metrics.json and diff.png")
     c.set_defaults(func=cmd_compare)
+    b = sub.add_parser("bake", help="bake an HDRI's split-sum files (pre-filtered levels, "
+                                    "irradiance, DFG tables), cached by content hash")
+    b.add_argument("hdri", help="equirectangular float HDRI (.exr, .hdr)")
+    b.add_argument("--out", default="", help="also copy the files into this folder")
+    b.set_defaults(func=cmd_bake)
     m = sub.add_parser("matrix", help="the main job: Cook-Torrance vs Principled, with a report")
     m.add_argument("--out", default="out/matrix", help="output folder (default out/matrix)")
     add_scene_arguments(m)

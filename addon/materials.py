@@ -22,13 +22,14 @@ class Lighting:
     """What the OSL shader must know of the scene's lights (it cannot read other objects)."""
 
     def __init__(self, sun_to_light=(0.0, 0.0, 1.0), sun_irradiance=(0.0, 0.0, 0.0),
-                 hdri="", hdri_strength=1.0, hdri_rotation=0.0, env_tables=None):
+                 hdri="", hdri_strength=1.0, hdri_rotation=0.0, env_tables=None, ibl_bake=""):
         self.sun_to_light = tuple(sun_to_light)
         self.sun_irradiance = tuple(sun_irradiance)
         self.hdri = str(hdri)
         self.hdri_strength = float(hdri_strength)
         self.hdri_rotation = float(hdri_rotation)      # radians, as the Mapping node's Z
-        self.env_tables = env_tables or {}
+        self.env_tables = env_tables or {}      # reference IBL: importance tables
+        self.ibl_bake = str(ibl_bake)           # split_sum / unity IBL: the bake folder
 
 
 def _new_material(name: str) -> bpy.types.Material:
@@ -142,6 +143,7 @@ def set_lighting(mat: bpy.types.Material, lighting: Lighting) -> None:
     sock("env_marginal").default_value = tables.get("marginal", "")
     sock("env_conditional").default_value = tables.get("conditional", "")
     sock("env_pdf_table").default_value = tables.get("pdf", "")
+    sock("ibl_bake").default_value = lighting.ibl_bake
 
 
 def principled_material(name="Principled Reference", per_object=False, albedo=DEFAULT_ALBEDO,

@@ -25,9 +25,11 @@ from .params import AGX_VIEWS, EXACT_VIEWS
 OUTPUT_FILES = ("render.exr", "render.png", "scene.json")
 
 
-def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed: int = 0) -> None:
+def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed: int = 0,
+              pixel_centres: bool = False) -> None:
     """Cycles on the CPU; OSL for the Cook-Torrance shader; no denoiser, no adaptive sampling
-    and no clamping, so renders converge to the integral they estimate."""
+    and no clamping, so renders converge to the integral they estimate. Term views (and every
+    view with ``pixel_centres``) take one sample at each pixel centre."""
     scene.render.engine = 'CYCLES'
     cy = scene.cycles
     cy.device = 'CPU'
@@ -38,7 +40,7 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
     cy.sample_clamp_indirect = 0.0
     cy.seed = seed
     cy.use_animated_seed = False
-    if shader == "osl" and view in EXACT_VIEWS:
+    if shader == "osl" and (view in EXACT_VIEWS or pixel_centres):
         cy.samples = 1
         cy.pixel_filter_type = 'BOX'
         cy.filter_width = 0.01

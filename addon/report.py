@@ -1,4 +1,6 @@
-"""report.html: Cook-Torrance | Principled | difference, per-cell numbers, the parameters."""
+"""report.html: each comparison as render | reference | difference, per-cell numbers laid out
+as the matrix, the parameters. The first comparison is the model against Principled BSDF; the
+others are the baked IBL modes against the reference integration (the split-sum study)."""
 
 from __future__ import annotations
 
@@ -13,15 +15,21 @@ def _table(metrics: dict) -> str:
         rows.append(
             f"<tr><td>{c['row']}</td><td>{c['col']}</td><td>{c['metallic']:.3f}</td>"
             f"<td>{c['smoothness']:.3f}</td><td>{c['mae']:.4f}</td><td>{c['rmse']:.4f}</td>"
+            f"<td>{_fmt(c['rel_luminance_error'], '+.1%')}</td>"
             f"<td>{c['psnr_db']:.2f}</td><td>{c['ciede2000_mean']:.2f}</td>"
             f"<td>{c['ciede2000_p95']:.2f}</td></tr>")
     o = metrics["overall"]
     rows.append(f"<tr class='all'><td colspan=4>all cells</td><td>{o['mae']:.4f}</td>"
-                f"<td>{o['rmse']:.4f}</td><td>{o['psnr_db']:.2f}</td>"
+                f"<td>{o['rmse']:.4f}</td><td>{_fmt(o['rel_luminance_error'], '+.1%')}</td>"
+                f"<td>{o['psnr_db']:.2f}</td>"
                 f"<td>{o['ciede2000_mean']:.2f}</td><td>{o['ciede2000_p95']:.2f}</td></tr>")
     head = ("<tr><th>row</th><th>col</th><th>metallic</th><th>smoothness</th><th>MAE</th>"
-            "<th>RMSE</th><th>PSNR (dB)</th><th>&Delta;E00 mean</th><th>&Delta;E00 p95</th></tr>")
+            "<th>RMSE</th><th>rel. luminance</th><th>PSNR (dB)</th><th>&Delta;E00 mean</th><th>&Delta;E00 p95</th></tr>")
     return f"<table>{head}{''.join(rows)}</table>"
+
+
+def _fmt(value, fmt: str) -> str:
+    return "&ndash;" if value is None else format(value, fmt)
 
 
 def _grid(metrics: dict, key: str, fmt: str) -> str:
@@ -35,18 +43,58 @@ def _grid(metrics: dict, key: str, fmt: str) -> str:
     head = "<tr><th>smoothness \\ metallic</th>" + "".join(
         f"<th>{metal[j]:.2f}</th>" for j in range(cols)) + "</tr>"
     body = "".join("<tr><th>" + f"{smooth[i]:.2f}</th>" + "".join(
-        f"<td>{format(value[(i, j)], fmt)}</td>" for j in range(cols)) + "</tr>"
+        f"<td>{_fmt(value[(i, j)], fmt)}</td>" for j in range(cols)) + "</tr>"
         for i in range(rows))
     return f"<table class='grid'>{head}{body}</table>"
 
 
-def write_report(out_dir: Path, ct_dir: str, ref_dir: str, cmp_dir: str, metrics: dict,
-                 scene: dict, timings: dict) -> Path:
-    """Write report.html into out_dir (whole or not at all); image paths are relative."""
+def _figures(a_dir, b_dir, cmp_dir, a_label, b_label, metrics) -> str:
+    figs = ((f"{a_dir}/render.png", a_label), (f"{b_dir}/render.png", b_label),
+            (f"{cmp_dir}/diff.png",
+             f"&Delta;E00 (black 0, white &ge; {metrics['heatmap_max_ciede2000']:g})"))
+    return "<div class='row'>" + "".join(
+        f"<figure><img src='{html.escape(src)}' alt='{html.escape(label)}'>"
+        f"<figcaption>{label if label.startswith('&') else html.escape(label)}</figcaption></figure>"
+        for src, label in figs) + "</div>"
+
+
+def _summary(metrics: dict) -> str:
+    o = metrics["overall"]
+    return (f"Over all sphere pixels: mean &Delta;E00 <b>{o['ciede2000_mean']:.2f}</b> "
+            f"(95th percentile {o['ciede2000_p95']:.2f}), PSNR {o['psnr_db']:.2f} dB (displayed "
+            f"colours), relative luminance error {_fmt(o['rel_luminance_error'], '+.1%')}, MAE "
+            f"{o['mae']:.4f} and RMSE {o['rmse']:.4f} (linear values).")
+
+
+SPLIT_SUM_NOTE = """<p>The split-sum (Karis 2013) replaces the integral of f_r L (n.l) by two
+factors: the environment pre-filtered with the GGX lobe under the assumption n = v = r, and the
+BRDF's directional albedo (the DFG table, integrated for this model's D and G). It is exact for a
+uniform environment; elsewhere it errs most at grazing views, where the true lobe is stretched
+and bent toward the normal while the pre-filtered lobe stays round around r, and on rough
+surfaces under a small bright source (the sun), whose highlight it centres on r. The Unity mode
+adds Unity's own shortcuts: its mip mapping of roughness, surfaceReduction and FresnelLerp in
+place of the DFG table, and no Disney factor on indirect diffuse.</p>"""
+
+
+def write_report(out_dir: Path, comparisons, scene: dict, timings: dict) -> Path:
+    """Write report.html into out_dir (whole or not at all); image paths are relative.
+
+    ``comparisons``: (render folder, reference folder, comparison folder, render label,
+    reference label, metrics) tuples; the first is the model against Principled BSDF."""
     params = {k: scene[k] for k in ("rows", "cols", "width", "height", "samples", "hdri",
                                     "hdri_strength", "hdri_rotation_deg", "sun", "model",
                                     "principled_distribution", "blender") if k in scene}
-    o = metrics["overall"]
+    main, studies = comparisons[0], comparisons[1:]
+    metrics = main[5]
+    study_html = ""
+    if studies:
+        study_html = "<h2>Baked IBL against the reference integration</h2>" + SPLIT_SUM_NOTE
+        for a_dir, b_dir, cmp_dir, a_label, b_label, m in studies:
+            study_html += (f"<h3>{html.escape(a_label)}</h3>{_figures(a_dir, b_dir, cmp_dir, a_label, b_label, m)}"
+                           f"<p>{_summary(m)}</p>"
+                           f"<h4>Mean &Delta;E00 per cell</h4>{_grid(m, 'ciede2000_mean', '.2f')}"
+                           f"<h4>Relative luminance error per cell (positive: brighter than the "
+                           f"reference)</h4>{_grid(m, 'rel_luminance_error', '+.1%')}")
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: sphere matrix report</title>
 <style>
@@ -60,25 +108,21 @@ tr.all td {{ font-weight: 600; }} pre {{ background: #f4f4f4; padding: 1em; }}
 </style></head><body>
 <h1>Cook-Torrance Lab: sphere matrix</h1>
 <p>Columns: metallic 0 &rarr; 1 (left to right). Rows: smoothness 1 &rarr; 0 (top to bottom).
-Both renders use the same world HDRI and Sun; the Cook-Torrance render is the OSL shader
+All renders use the same world HDRI and Sun; the Cook-Torrance renders are the OSL shader
 (shared/SPEC.md), the reference is Blender's Principled BSDF path-traced by Cycles.</p>
-<div class="row">
-<figure><img src="{html.escape(ct_dir)}/render.png" alt="Cook-Torrance"><figcaption>Cook-Torrance (OSL)</figcaption></figure>
-<figure><img src="{html.escape(ref_dir)}/render.png" alt="Principled"><figcaption>Principled BSDF</figcaption></figure>
-<figure><img src="{html.escape(cmp_dir)}/diff.png" alt="difference"><figcaption>&Delta;E00 (black 0, white &ge; {metrics['heatmap_max_ciede2000']:g})</figcaption></figure>
-</div>
+{_figures(*main)}
 <h2>Summary</h2>
-<p>Over all sphere pixels: mean &Delta;E00 <b>{o['ciede2000_mean']:.2f}</b>,
-PSNR {o['psnr_db']:.2f} dB (displayed colours), MAE {o['mae']:.4f} and RMSE {o['rmse']:.4f}
-(linear values). Render times: {html.escape(', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))}.</p>
+<p>{_summary(metrics)} Render times: {html.escape(', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))}.</p>
 <p>Differences are expected: the seed model uses the Cook-Torrance G and Disney diffuse, with
 no multiple scattering, while Principled uses height-correlated Smith G, multiscatter GGX and
 energy-conserving layering.</p>
 <h2>Mean &Delta;E00 per cell</h2>{_grid(metrics, 'ciede2000_mean', '.2f')}
 <h2>Per-cell metrics</h2>{_table(metrics)}
 <p>MAE and RMSE compare the raw float values (render.exr); PSNR and &Delta;E00 (CIEDE2000)
-compare the displayed colours (render.png, AgX view transform). Cells use the pixels within
-95% of each sphere's radius.</p>
+compare the displayed colours (render.png, AgX view transform); the relative luminance error
+compares the mean Rec. 709 luminance of the raw values. Cells use the pixels within 95% of
+each sphere's radius.</p>
+{study_html}
 <h2>Parameters</h2><pre>{html.escape(json.dumps(params, indent=2))}</pre>
 </body></html>
 """

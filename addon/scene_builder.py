@@ -18,10 +18,10 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
-from . import env_importance, materials
+from . import env_importance, ibl_bake, materials
 from .errors import UserError
 from .hdri import load_hdri
-from .params import DEFAULT_ALBEDO, ModelOptions, matrix_values
+from .params import BAKED_IBL_MODES, DEFAULT_ALBEDO, ModelOptions, matrix_values
 from .paths import bundled_hdri
 
 TAG = "ctlab_matrix"
@@ -164,13 +164,18 @@ def load_image(path: Path) -> bpy.types.Image:
     return image
 
 
-def build_matrix(scene: bpy.types.Scene, s: MatrixSettings) -> dict:
+def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> dict:
     """Build (or rebuild) the sphere matrix in ``scene``; returns the scene description
-    (see ``describe``). Validates everything before touching the scene."""
+    (see ``describe``). Validates everything (and bakes the IBL files the model needs, cached)
+    before touching the scene; ``progress(fraction, message)`` follows a bake."""
     s.validate()
     hdri = s.hdri_path()
     load_hdri(hdri)                               # a clear error for a bad HDRI, before any change
-    tables = env_importance.tables_for(hdri) if s.shader == "osl" else {}
+    tables, bake = {}, ""
+    if s.shader == "osl" and s.model.ibl == "reference":
+        tables = env_importance.tables_for(hdri)
+    elif s.shader == "osl" and s.model.ibl in BAKED_IBL_MODES:
+        bake = ibl_bake.bake(hdri, progress)
 
     remove_matrix(scene)
     coll = bpy.data.collections.get(COLLECTION)
@@ -206,7 +211,8 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings) -> dict:
 
     if s.shader == "osl":
         lighting = materials.Lighting(tuple(s.to_light()), s.irradiance(), str(hdri),
-                                      s.hdri_strength, math.radians(s.hdri_rotation), tables)
+                                      s.hdri_strength, math.radians(s.hdri_rotation), tables,
+                                      bake)
         mat = materials.cook_torrance_material("Cook-Torrance Matrix", s.model, lighting,
                                                per_object=True)
     else:

@@ -45,7 +45,7 @@ def test_matrix_main_job_writes_a_report(tmp_path):
     out = tmp_path / "m"
     p = run("matrix", "--out", out, "--grid", "2x2", "--size", "48", "--samples", "4")
     assert p.returncode == 0, p.stderr + p.stdout
-    assert "[1/4]" in p.stdout and "[4/4]" in p.stdout
+    assert "[1/6]" in p.stdout and "[6/6]" in p.stdout
     for f in ("report.html", "cook_torrance/render.png", "principled/render.png",
               "compare/diff.png", "compare/metrics.json"):
         assert (out / f).is_file(), f
