@@ -292,14 +292,14 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
     if (folder / INFO_FILE).is_file():
         _report(progress, 1.0, f"cached: {folder}")
         return folder
-    start = time.perf_counter()
     pixels, repaired = read_hdri(hdri_path, repair=True)
     if repaired and warn is not None:
         warn(f"{hdri_path} holds {repaired} NaN/Inf pixel(s); they were set to 0 for the bake")
     dfg = {}
     for g in G_MODELS:
-        _report(progress, 0.05, f"DFG table ({g})")
+        _report(progress, 0.05, f"DFG table ({g}; once per cache)")
         dfg[g] = dfg_path(g)
+    start = time.perf_counter()           # the HDRI's own bake, after the shared DFG tables
     timings = {}
 
     def fill(stage: Path):

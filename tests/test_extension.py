@@ -1,6 +1,6 @@
 """The repository root is the extension: Blender's own tool builds and validates the zip; it
-installs and enables headless into a temporary user folder, and its operator builds the matrix
-there. Rebuilding never deletes a user's objects."""
+installs and enables headless into a temporary user folder, and its operators build the matrix
+and bake the world there. Rebuilding never deletes a user's objects."""
 
 import os
 import subprocess
@@ -57,6 +57,16 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
         except RuntimeError as exc:
             assert "HDRI not found: /nonexistent.exr" in str(exc), exc
         assert len([o for o in bpy.data.objects if o.get("ctlab_matrix")]) == 8
+        # the bake operator bakes the world's Environment Texture (forest.exr) into the cache
+        assert bpy.ops.ctlab.bake_environment() == {{'FINISHED'}}
+        import json, pathlib
+        info = json.loads((pathlib.Path(bpy.context.scene["ctlab_ibl_bake"]) / "bake.json").read_text())
+        assert info["source"].endswith("forest.exr") and len(info["levels"]) == 7, info
+        try:
+            bpy.ops.ctlab.bake_environment(filepath="/nonexistent.exr")
+            raise AssertionError("a missing HDRI was baked")
+        except RuntimeError as exc:
+            assert "HDRI not found: /nonexistent.exr" in str(exc), exc
         print("EXTENSION-OK")
     """)
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))
