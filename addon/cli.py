@@ -67,9 +67,10 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sun-strength", type=float, default=1.0, help="Sun irradiance (W/m^2)")
     p.add_argument("--albedo", default=",".join(map(str, MATRIX_ALBEDO)),
                    help="R,G,B linear albedo (default: gold)")
-    p.add_argument("--ibl", default=IBL_MODES[0],
-                   help="indirect light: " + "|".join(IBL_MODES) + " (split_sum and unity use "
-                        "the files of 'ctlab bake', made and cached on demand)")
+    p.add_argument("--ibl", default=None,
+                   help="indirect light: " + "|".join(IBL_MODES) + " (default: reference; "
+                        "split_sum for the node group; split_sum and unity use the files of "
+                        "'ctlab bake', made and cached on demand)")
     p.add_argument("--g", dest="g_model", default=G_MODELS[0], help="|".join(G_MODELS))
     p.add_argument("--diffuse", dest="diffuse_model", default=DIFFUSE_MODELS[0],
                    help="|".join(DIFFUSE_MODELS))
@@ -91,8 +92,9 @@ def matrix_settings(args, shader: str, view: str):
     rows, cols = parse_grid(args.grid)
     if args.samples < 1 or args.samples > 65536:
         raise UserError(f"samples {args.samples} out of range; use 1 to 65536")
+    ibl = args.ibl or ("split_sum" if shader == "nodes" else IBL_MODES[0])
     model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
-                         units=args.units, ibl=args.ibl, env_samples=args.env_samples,
+                         units=args.units, ibl=ibl, env_samples=args.env_samples,
                          env_visibility=args.env_visibility, seed=args.seed)
     s = MatrixSettings(rows=rows, cols=cols, hdri=args.hdri, hdri_strength=args.hdri_strength,
                        hdri_rotation=args.hdri_rotation,
@@ -109,7 +111,7 @@ def matrix_settings(args, shader: str, view: str):
 
 
 def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=None,
-                 pixel_centres: bool = False) -> dict:
+                 pixel_centres: bool = False, engine: str = "cycles") -> dict:
     """Build the matrix once in a fresh empty scene and render each view into its folder
     (``{view: folder}``); the shader compiles once. Returns the last scene description.
     ``pixel_centres``: every view as one sample at each pixel centre (no anti-aliasing)."""
@@ -127,8 +129,10 @@ def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=N
         description["model"] = settings.model.as_dict()
         if settings.shader == "osl":
             materials.set_options(mat, settings.model)
+        elif settings.shader == "nodes":
+            materials.set_group_options(materials.group_node(mat), settings.model)
         renderer.configure(scene, settings.shader, view, samples, settings.model.seed,
-                           pixel_centres)
+                           pixel_centres, engine)
         description = renderer.render(scene, out_dir, description, log)
         if report:
             report(i, view, description)
@@ -142,6 +146,8 @@ def render_one(settings, out_dir: Path, samples: int, verbose: bool) -> dict:
 
 def cmd_render(args) -> None:
     views = VIEWS if args.view == "all" else (args.view,)
+    if args.engine == "eevee" and args.shader != "nodes":
+        raise UserError("--engine eevee renders the node group only; add --shader nodes")
     settings = matrix_settings(args, args.shader, views[0])
     out = Path(args.out)
     dirs = {v: out / v for v in views} if args.view == "all" else {views[0]: out}
@@ -150,7 +156,8 @@ def cmd_render(args) -> None:
 
     def report(i, view, d):
         progress(f"[{i + 1}/{len(dirs)}] {view}: {d['render_seconds']:.1f} s -> {dirs[view]}")
-    render_views(settings, dirs, args.samples, args.verbose, report, args.pixel_centres)
+    render_views(settings, dirs, args.samples, args.verbose, report, args.pixel_centres,
+                 args.engine)
     progress("done: render.exr, render.png and scene.json in each folder")
 
 
@@ -228,10 +235,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ctlab", description="Cook-Torrance Lab batch tools")
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render the sphere matrix with one shader and view")
-    r.add_argument("--shader", required=True, choices=("osl", "principled"))
+    r.add_argument("--shader", required=True, choices=("osl", "nodes", "principled"),
+                   help="the OSL shader, the node group (its default IBL: split_sum) or "
+                        "Principled BSDF")
     r.add_argument("--out", required=True, help="output folder")
     r.add_argument("--view", default="full",
                    help="|".join(VIEWS) + "|all (all: one sub-folder per view)")
+    r.add_argument("--engine", default="cycles", choices=("cycles", "eevee"),
+                   help="cycles (CPU; SVM for the node group) or eevee (node group only)")
     r.add_argument("--pixel-centres", action="store_true",
                    help="every view as one sample at each pixel centre, like the term views "
                         "(exact per-pixel values, no anti-aliasing; OSL only)")

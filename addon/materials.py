@@ -1,4 +1,5 @@
-"""The two materials of the project: Cook-Torrance (OSL) and the Principled BSDF reference.
+"""The materials of the project: Cook-Torrance (OSL or the node group) and the Principled BSDF
+reference.
 
 Both can read their surface inputs from the shaded object (Attribute nodes of type Object
 reading the custom properties below), so one material serves a whole sphere matrix and the
@@ -144,6 +145,64 @@ def set_lighting(mat: bpy.types.Material, lighting: Lighting) -> None:
     sock("env_conditional").default_value = tables.get("conditional", "")
     sock("env_pdf_table").default_value = tables.get("pdf", "")
     sock("ibl_bake").default_value = lighting.ibl_bake
+
+
+def node_group_material(name="Cook-Torrance (nodes)", options: ModelOptions | None = None,
+                        lighting: Lighting | None = None, per_object=False,
+                        albedo=DEFAULT_ALBEDO, metallic=0.0, smoothness=0.5,
+                        albedo_image=None) -> bpy.types.Material:
+    """A material whose surface is the Cook-Torrance node group (node_groups/), emitting the
+    chosen view; works in Cycles (SVM or OSL) and EEVEE."""
+    from . import node_group
+    options = options or ModelOptions()
+    lighting = lighting or Lighting()
+    group = node_group.build_group()
+    mat = _new_material(name)
+    nt = mat.node_tree
+    node = nt.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    node.name = node.label = "Cook-Torrance"
+    node.width = 220
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (400, 0)
+    nt.links.new(node.outputs["Emission"], out.inputs["Surface"])
+    albedo_s, metallic_s, smooth_s, _ = _surface_inputs(
+        nt, per_object, albedo, metallic, smoothness, albedo_image)
+    _connect_or_set(nt, albedo_s, node.inputs["Albedo"])
+    _connect_or_set(nt, metallic_s, node.inputs["Metallic"])
+    _connect_or_set(nt, smooth_s, node.inputs["Smoothness"])
+    set_group_options(node, options)
+    set_group_lighting(node, lighting)
+    return mat
+
+
+def group_node(mat: bpy.types.Material) -> bpy.types.ShaderNodeGroup:
+    from .node_group import TAG
+    return next(n for n in mat.node_tree.nodes
+                if n.bl_idname == "ShaderNodeGroup" and n.node_tree and n.node_tree.get(TAG))
+
+
+def set_group_options(node: bpy.types.ShaderNodeGroup, options: ModelOptions) -> None:
+    from .errors import UserError
+    from .params import BAKED_IBL_MODES, VIEWS
+    if options.ibl not in BAKED_IBL_MODES:
+        raise UserError(f"the node group has no {options.ibl!r} indirect light (it cannot "
+                        f"integrate an HDRI); use one of: {', '.join(BAKED_IBL_MODES)}")
+    node.inputs["View"].default_value = VIEWS.index(options.view)
+    node.inputs["G Smith"].default_value = int(options.g_model == "smith_ggx_correlated")
+    node.inputs["Diffuse Lambert"].default_value = int(options.diffuse_model == "lambert")
+    node.inputs["Units Unity"].default_value = int(options.units == "unity")
+    node.inputs["IBL Unity"].default_value = int(options.ibl == "unity")
+
+
+def set_group_lighting(node: bpy.types.ShaderNodeGroup, lighting: Lighting) -> None:
+    from . import node_group
+    node.inputs["Sun Direction"].default_value = lighting.sun_to_light
+    node.inputs["Sun Irradiance"].default_value = tuple(lighting.sun_irradiance) + (1.0,)
+    node.inputs["HDRI Strength"].default_value = lighting.hdri_strength
+    node.inputs["HDRI Rotation"].default_value = lighting.hdri_rotation
+    if lighting.ibl_bake:
+        node_group.set_bake(node.node_tree, lighting.ibl_bake)
 
 
 def principled_material(name="Principled Reference", per_object=False, albedo=DEFAULT_ALBEDO,

@@ -25,11 +25,36 @@ from .params import AGX_VIEWS, EXACT_VIEWS
 OUTPUT_FILES = ("render.exr", "render.png", "scene.json")
 
 
+ENGINES = ("cycles", "eevee")
+
+
+def eevee_engine_id() -> str:
+    """EEVEE's engine identifier: BLENDER_EEVEE_NEXT in 4.2 to 4.5, BLENDER_EEVEE from 5.0."""
+    return 'BLENDER_EEVEE_NEXT' if bpy.app.version < (5, 0, 0) else 'BLENDER_EEVEE'
+
+
+def configure_eevee(scene: bpy.types.Scene, view: str, samples: int, pixel_centres: bool) -> None:
+    """EEVEE for the node group (OSL cannot run there): term views (and every view with
+    ``pixel_centres``) take one sample with a zero-width filter."""
+    scene.render.engine = eevee_engine_id()
+    exact = view in EXACT_VIEWS or pixel_centres
+    scene.eevee.taa_render_samples = 1 if exact else samples
+    scene.render.filter_size = 0.0 if exact else 1.5
+
+
 def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed: int = 0,
-              pixel_centres: bool = False) -> None:
+              pixel_centres: bool = False, engine: str = "cycles") -> None:
     """Cycles on the CPU; OSL for the Cook-Torrance shader; no denoiser, no adaptive sampling
     and no clamping, so renders converge to the integral they estimate. Term views (and every
-    view with ``pixel_centres``) take one sample at each pixel centre."""
+    view with ``pixel_centres``) take one sample at each pixel centre. ``engine`` "eevee"
+    renders the node group with EEVEE instead."""
+    if engine == "eevee":
+        if shader != "nodes":
+            raise UserError(f"EEVEE cannot render the {shader!r} shader here; use --shader nodes "
+                            "(the OSL shader needs Cycles on the CPU)")
+        configure_eevee(scene, view, samples, pixel_centres)
+        _view_transform(scene, view)
+        return
     scene.render.engine = 'CYCLES'
     cy = scene.cycles
     cy.device = 'CPU'
@@ -40,7 +65,7 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
     cy.sample_clamp_indirect = 0.0
     cy.seed = seed
     cy.use_animated_seed = False
-    if shader == "osl" and (view in EXACT_VIEWS or pixel_centres):
+    if shader != "principled" and (view in EXACT_VIEWS or pixel_centres):
         cy.samples = 1
         cy.pixel_filter_type = 'BOX'
         cy.filter_width = 0.01
@@ -48,10 +73,14 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
         cy.samples = samples
         cy.pixel_filter_type = 'BLACKMAN_HARRIS'
         cy.filter_width = 1.5
-    if shader == "osl":
+    if shader != "principled":
         cy.max_bounces = 0             # the shader integrates the lighting itself
     scene.render.film_transparent = False
     scene.render.use_persistent_data = False
+    _view_transform(scene, view)
+
+
+def _view_transform(scene: bpy.types.Scene, view: str) -> None:
     vs = scene.view_settings
     vs.view_transform = 'AgX' if view in AGX_VIEWS else 'Standard'
     vs.look = 'None'
@@ -154,7 +183,9 @@ def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=No
             _save(scene, result, staged["render.png"], "png")
         description = dict(description, render_seconds=round(elapsed, 3),
                            **cycles_times(staged["render.exr"]),
-                           samples=scene.cycles.samples,
+                           samples=(scene.cycles.samples if scene.render.engine == 'CYCLES'
+                                    else scene.eevee.taa_render_samples),
+                           engine=scene.render.engine,
                            view_transform=scene.view_settings.view_transform,
                            blender=bpy.app.version_string)
         staged["scene.json"].write_text(json.dumps(description, indent=2))

@@ -26,7 +26,7 @@ from .paths import bundled_hdri
 
 TAG = "ctlab_matrix"
 COLLECTION = "Cook-Torrance Matrix"
-SHADERS = ("osl", "principled")
+SHADERS = ("osl", "nodes", "principled")     # the OSL shader, the node group, the reference
 MAX_GRID = 16
 SIZE_RANGE = (16, 4096)
 
@@ -68,6 +68,9 @@ class MatrixSettings:
                 raise UserError(f"image size {n} out of range; use {SIZE_RANGE[0]} to {SIZE_RANGE[1]}")
         if self.shader not in SHADERS:
             raise UserError(f"unknown shader {self.shader!r}; choose one of: {', '.join(SHADERS)}")
+        if self.shader == "nodes" and self.model.ibl not in BAKED_IBL_MODES:
+            raise UserError(f"the node group has no {self.model.ibl!r} indirect light (it "
+                            f"cannot integrate an HDRI); use --ibl {'|'.join(BAKED_IBL_MODES)}")
         vec = self.sun_to_light
         if len(vec) != 3 or not all(math.isfinite(x) for x in vec) or Vector(vec).length < 1e-6:
             raise UserError(f"sun direction {vec} is not a non-zero 3-vector")
@@ -174,7 +177,7 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
     tables, bake = {}, ""
     if s.shader == "osl" and s.model.ibl == "reference":
         tables = env_importance.tables_for(hdri)
-    elif s.shader == "osl" and s.model.ibl in BAKED_IBL_MODES:
+    elif s.shader != "principled" and s.model.ibl in BAKED_IBL_MODES:
         bake = ibl_bake.bake(hdri, progress)
 
     remove_matrix(scene)
@@ -209,12 +212,14 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
     scene.render.resolution_percentage = 100
     scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
 
+    lighting = materials.Lighting(tuple(s.to_light()), s.irradiance(), str(hdri),
+                                  s.hdri_strength, math.radians(s.hdri_rotation), tables, bake)
     if s.shader == "osl":
-        lighting = materials.Lighting(tuple(s.to_light()), s.irradiance(), str(hdri),
-                                      s.hdri_strength, math.radians(s.hdri_rotation), tables,
-                                      bake)
         mat = materials.cook_torrance_material("Cook-Torrance Matrix", s.model, lighting,
                                                per_object=True)
+    elif s.shader == "nodes":
+        mat = materials.node_group_material("Cook-Torrance Matrix (nodes)", s.model, lighting,
+                                            per_object=True)
     else:
         mat = materials.principled_material("Principled Matrix", per_object=True,
                                             distribution=s.principled_distribution)

@@ -55,6 +55,10 @@ def test_matrix_main_job_writes_a_report(tmp_path):
         assert np.isfinite(metrics["overall"][key])
     html = (out / "report.html").read_text()
     assert "cook_torrance/render.png" in html and "compare/diff.png" in html
+    for study in ("split_sum", "unity"):
+        assert f"{study}/render.png" in html and f"compare_{study}/diff.png" in html
+        cells = json.loads((out / f"compare_{study}" / "metrics.json").read_text())["cells"]
+        assert all(np.isfinite(c["rel_luminance_error"]) for c in cells)
     assert not list(out.rglob("*partial*"))
 
 
@@ -75,6 +79,8 @@ BAD = {
     "size out of range": (["--size", "5"], "image size 5 out of range"),
     "unwritable output": (["--out", "@FILE/sub"], "output folder not writable"),
     "bad samples": (["--samples", "0"], "samples 0 out of range"),
+    "unknown ibl": (["--ibl", "probe"], "unknown IBL 'probe'"),
+    "eevee with osl": (["--engine", "eevee"], "--engine eevee renders the node group only"),
 }
 
 
