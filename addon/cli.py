@@ -139,9 +139,10 @@ def render_views(settings, out_dirs: dict, samples: int, verbose: bool, report=N
     return description
 
 
-def render_one(settings, out_dir: Path, samples: int, verbose: bool) -> dict:
+def render_one(settings, out_dir: Path, samples: int, verbose: bool, engine="cycles") -> dict:
     """Build the matrix in a fresh empty scene and render its view into out_dir."""
-    return render_views(settings, {settings.model.view: Path(out_dir)}, samples, verbose)
+    return render_views(settings, {settings.model.view: Path(out_dir)}, samples, verbose,
+                        engine=engine)
 
 
 def cmd_render(args) -> None:
@@ -188,12 +189,15 @@ def cmd_bake(args) -> None:
 MATRIX_RENDERS = (("cook_torrance", "Cook-Torrance (OSL, reference IBL)", "osl", "reference"),
                   ("principled", "Principled BSDF", "principled", "reference"),
                   ("split_sum", "Cook-Torrance (OSL, split-sum IBL)", "osl", "split_sum"),
-                  ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity"))
+                  ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity"),
+                  ("nodes", "Cook-Torrance (node group, split-sum IBL)", "nodes", "split_sum"))
 # Its comparisons: (folder, render, against). The model against Principled; the baked IBL
-# modes against the reference integration (the accuracy study of the split-sum).
+# modes against the reference integration (the accuracy study of the split-sum); the node
+# group against the OSL shader in the same mode (parity).
 MATRIX_COMPARISONS = (("compare", "cook_torrance", "principled"),
                       ("compare_split_sum", "split_sum", "cook_torrance"),
-                      ("compare_unity", "unity", "cook_torrance"))
+                      ("compare_unity", "unity", "cook_torrance"),
+                      ("compare_nodes", "nodes", "split_sum"))
 
 
 def cmd_matrix(args) -> None:
@@ -228,7 +232,7 @@ def cmd_matrix(args) -> None:
     progress(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
              f"(PSNR {results['compare']['overall']['psnr_db']:.2f} dB); split-sum against "
              f"the reference {de['compare_split_sum']:.2f}, Unity {de['compare_unity']:.2f}; "
-             f"open {report}")
+             f"node group against OSL {de['compare_nodes']:.3f}; open {report}")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -21,6 +21,7 @@ from .paths import PACKAGE_ROOT
 DESCRIPTION = PACKAGE_ROOT / "node_groups" / "cook_torrance.toml"
 TAG = "ctlab_node_group"
 BAKE_FILE = "ctlab_bake_file"           # texture nodes: which baked file they read
+BAKE_DIM = "ctlab_bake_dim"             # value nodes: that file's width or height
 LEVELS = 7
 
 SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "NodeSocketColor",
@@ -202,19 +203,19 @@ class _Builder:
             self.link(args[1], node.inputs["Angle"])
             return node.outputs[0]
         if op == "env":
-            node = self.new("ShaderNodeTexEnvironment", interpolation='Linear',
-                            projection='EQUIRECTANGULAR')
-            node.label = args[0]
-            node[BAKE_FILE] = args[0]
-            self.link(args[1], node.inputs["Vector"])
-            return node.outputs["Color"]
+            # Blender's equirectangular mapping (the Environment Texture's, image rows bottom-up):
+            # s = 0.5 - atan2(d.y, d.x) / 2pi,  t = 0.5 + atan2(d.z, hypot(d.x, d.y)) / pi
+            d = args[1]
+            dx, dy, dz = (self.call(c, [d]) for c in ("x", "y", "z"))
+            s = self.call("math.SUBTRACT", [0.5, self.call("math.DIVIDE", [
+                self.call("math.ARCTAN2", [dy, dx]), 6.283185307179586])])
+            hyp = self.call("math.SQRT", [self.call("math.ADD", [
+                self.call("math.MULTIPLY", [dx, dx]), self.call("math.MULTIPLY", [dy, dy])])])
+            t = self.call("math.ADD", [0.5, self.call("math.DIVIDE", [
+                self.call("math.ARCTAN2", [dz, hyp]), 3.141592653589793])])
+            return self.bilinear(args[0], s, t, wrap_s=True)
         if op == "table":
-            uv = self.call("vec3", [args[1], args[2], 0.0])
-            node = self.new("ShaderNodeTexImage", interpolation='Linear', extension='EXTEND')
-            node.label = args[0]
-            node[BAKE_FILE] = args[0]
-            self.link(uv, node.inputs["Vector"])
-            return node.outputs["Color"]
+            return self.bilinear(args[0], args[1], args[2], wrap_s=False)
         if op == "levels":
             x, direction = args
             total = None
@@ -227,6 +228,52 @@ class _Builder:
                 total = term if total is None else self.call("vec.ADD", [total, term])
             return total
         raise UserError(f"node description: unknown operation {op!r}")
+
+    def bilinear(self, key, s, t, wrap_s):
+        """Bilinear interpolation of a baked image at (s, t) from four nearest-texel lookups at
+        texel centres, as OIIO's "linear" texture() in the OSL shader: s periodic (or clamped),
+        t clamped. Written out because EEVEE's linear sampling uses mip-maps chosen by screen
+        derivatives, which blur the tables and levels; nearest lookups have none."""
+        size = []
+        for dim in ("width", "height"):
+            value = self.new("ShaderNodeValue")
+            value.label = f"{key} {dim}"
+            value[BAKE_FILE] = key
+            value[BAKE_DIM] = dim
+            value.outputs[0].default_value = 1.0
+            size.append(value.outputs[0])
+        W, H = size
+        x = self.call("math.SUBTRACT", [self.call("math.MULTIPLY", [s, W]), 0.5])
+        y = self.call("math.SUBTRACT", [self.call("math.MULTIPLY", [t, H]), 0.5])
+        i0 = self.call("math.FLOOR", [x])
+        j0 = self.call("math.FLOOR", [y])
+        fx = self.call("math.SUBTRACT", [x, i0])
+        fy = self.call("math.SUBTRACT", [y, j0])
+        half_h = self.call("math.DIVIDE", [0.5, H])
+
+        def centre_u(i):
+            return self.call("math.DIVIDE", [self.call("math.ADD", [i, 0.5]), W])
+
+        def centre_v(j):
+            v = self.call("math.DIVIDE", [self.call("math.ADD", [j, 0.5]), H])
+            return self.call("math.MINIMUM", [self.call("math.MAXIMUM", [v, half_h]),
+                                              self.call("math.SUBTRACT", [1.0, half_h])])
+        us = (centre_u(i0), centre_u(self.call("math.ADD", [i0, 1.0])))
+        vs = (centre_v(j0), centre_v(self.call("math.ADD", [j0, 1.0])))
+        wx = (self.call("math.SUBTRACT", [1.0, fx]), fx)
+        wy = (self.call("math.SUBTRACT", [1.0, fy]), fy)
+        total = None
+        for a in range(2):
+            for b in range(2):
+                node = self.new("ShaderNodeTexImage", interpolation='Closest',
+                                extension='REPEAT' if wrap_s else 'EXTEND')
+                node.label = key
+                node[BAKE_FILE] = key
+                self.link(self.call("vec3", [us[a], vs[b], 0.0]), node.inputs["Vector"])
+                term = self.call("vec.SCALE", [node.outputs["Color"],
+                                               self.call("math.MULTIPLY", [wx[a], wy[b]])])
+                total = term if total is None else self.call("vec.ADD", [total, term])
+        return total
 
 
 def _interface(group, data):
@@ -286,6 +333,12 @@ def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
         if BAKE_FILE not in node:
             continue
         path = folder / f"{node[BAKE_FILE]}.exr"
+        if not path.is_file():
+            raise UserError(f"the bake folder {folder} has no {path.name}; bake again")
         image = bpy.data.images.load(str(path), check_existing=True)
         image.colorspace_settings.name = "Non-Color"
-        node.image = image
+        image.use_half_precision = False        # EEVEE: keep 32-bit floats on the GPU
+        if BAKE_DIM in node:
+            node.outputs[0].default_value = float(image.size[0 if node[BAKE_DIM] == "width" else 1])
+        else:
+            node.image = image

@@ -73,7 +73,9 @@ uniform environment; elsewhere it errs most at grazing views, where the true lob
 and bent toward the normal while the pre-filtered lobe stays round around r, and on rough
 surfaces under a small bright source (the sun), whose highlight it centres on r. The Unity mode
 adds Unity's own shortcuts: its mip mapping of roughness, surfaceReduction and FresnelLerp in
-place of the DFG table, and no Disney factor on indirect diffuse.</p>"""
+place of the DFG table, and no Disney factor on indirect diffuse. The node group computes the
+same split-sum as the OSL shader from the same files, but cannot trace the Sun's shadow: it
+differs where one sphere shadows another.</p>"""
 
 
 def write_report(out_dir: Path, comparisons, scene: dict, timings: dict) -> Path:
@@ -88,9 +90,11 @@ def write_report(out_dir: Path, comparisons, scene: dict, timings: dict) -> Path
     metrics = main[5]
     study_html = ""
     if studies:
-        study_html = "<h2>Baked IBL against the reference integration</h2>" + SPLIT_SUM_NOTE
+        study_html = ("<h2>Baked IBL against the reference integration; the node group against "
+                      "the OSL shader</h2>" + SPLIT_SUM_NOTE)
         for a_dir, b_dir, cmp_dir, a_label, b_label, m in studies:
-            study_html += (f"<h3>{html.escape(a_label)}</h3>{_figures(a_dir, b_dir, cmp_dir, a_label, b_label, m)}"
+            study_html += (f"<h3>{html.escape(a_label)} against {html.escape(b_label)}</h3>"
+                           f"{_figures(a_dir, b_dir, cmp_dir, a_label, b_label, m)}"
                            f"<p>{_summary(m)}</p>"
                            f"<h4>Mean &Delta;E00 per cell</h4>{_grid(m, 'ciede2000_mean', '.2f')}"
                            f"<h4>Relative luminance error per cell (positive: brighter than the "

@@ -18,7 +18,7 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
-from . import env_importance, ibl_bake, materials
+from . import env_importance, ibl_bake, light_sync, materials
 from .errors import UserError
 from .hdri import load_hdri
 from .params import BAKED_IBL_MODES, DEFAULT_ALBEDO, ModelOptions, matrix_values
@@ -224,6 +224,10 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
         mat = materials.principled_material("Principled Matrix", per_object=True,
                                             distribution=s.principled_distribution)
     mat[TAG] = True
+    if s.shader != "principled":
+        # the key light and the world inputs follow the Sun object and the world's nodes
+        node = materials.script_node(mat) if s.shader == "osl" else materials.group_node(mat)
+        light_sync.add_drivers(mat.node_tree, node, sun, scene.world)
 
     mesh = bpy.data.meshes.new("Cook-Torrance Lab Sphere")
     _sphere_mesh(mesh, s.radius)

@@ -35,15 +35,19 @@ BUNDLED = ("city", "courtyard", "forest", "interior", "night", "studio", "sunris
 
 # --- Render times ------------------------------------------------------------------------
 
-def one_render(shader, ibl, grid, size, samples, work):
+def one_render(shader, ibl, grid, size, samples, work, engine="cycles"):
     s = MatrixSettings(rows=grid, cols=grid, width=size, height=size, shader=shader,
                        model=ModelOptions(view="full", ibl=ibl))
     start = time.perf_counter()
-    d = cli.render_one(s, work / f"{shader}-{ibl}-{grid}-{size}-{samples}", samples, verbose=False)
-    name = shader if shader == "principled" else f"osl {ibl}"
+    d = cli.render_one(s, work / f"{shader}-{ibl}-{grid}-{size}-{samples}-{engine}", samples,
+                       verbose=False, engine=engine)
+    name = shader if shader == "principled" else f"{shader} {ibl}" + (
+        " (eevee)" if engine == "eevee" else "")
     return {"shader": name, "grid": f"{grid}x{grid}", "size": size, "samples": samples,
             "env_samples": s.model.env_samples, "wall_seconds": round(time.perf_counter() - start, 2),
-            "sync_seconds": d.get("sync_seconds"), "render_seconds": d.get("cycles_render_seconds")}
+            "sync_seconds": d.get("sync_seconds"),
+            # EEVEE writes no timing metadata: its figure is the wall time of the render call
+            "render_seconds": d.get("cycles_render_seconds", d["render_seconds"])}
 
 
 def bench_render(quick: bool) -> dict:
@@ -52,9 +56,10 @@ def bench_render(quick: bool) -> dict:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        for shader, ibl in (("osl", "reference"), ("principled", "reference"),
-                            ("osl", "split_sum"), ("osl", "unity")):
-            rows.append(dict(one_render(shader, ibl, *main_cfg, work), case="default matrix"))
+        for shader, ibl, engine in (("osl", "reference", "cycles"), ("principled", "reference", "cycles"),
+                                    ("osl", "split_sum", "cycles"), ("osl", "unity", "cycles"),
+                                    ("nodes", "split_sum", "cycles"), ("nodes", "split_sum", "eevee")):
+            rows.append(dict(one_render(shader, ibl, *main_cfg, work, engine), case="default matrix"))
             print(rows[-1], flush=True)
         for g in (3, 7, 11):
             for shader in ("osl", "principled"):
@@ -77,8 +82,9 @@ def render_table(section: dict) -> list:
     lines = ["| case | shader | grid | size | samples | sync (s) | render (s) | wall (s) |",
              "|---|---|---|---|---|---|---|---|"]
     for r in section["rows"]:
+        sync = "–" if r["sync_seconds"] is None else f"{r['sync_seconds']:.2f}"
         lines.append(f"| {r['case']} | {r['shader']} | {r['grid']} | {r['size']} | {r['samples']} "
-                     f"| {r['sync_seconds']:.2f} | {r['render_seconds']:.2f} | {r['wall_seconds']:.2f} |")
+                     f"| {sync} | {r['render_seconds']:.2f} | {r['wall_seconds']:.2f} |")
     ratios = ", ".join(f"{k} {v}x" for k, v in section["ratios_over_principled_render"].items())
     return lines + ["", f"Render time over Principled's at equal samples (default matrix): {ratios}."]
 

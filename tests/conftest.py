@@ -26,7 +26,7 @@ from addon.scene_builder import MatrixSettings  # noqa: E402
 
 
 def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96,
-           pixel_centres=False, **kw):
+           pixel_centres=False, engine="cycles", **kw):
     """Render the sphere matrix with the real pipeline; returns (linear image, scene dict).
     With a tuple of views: ({view: image}, scene), the scene built and compiled once."""
     model_keys = ("g_model", "diffuse_model", "units", "ibl", "env_samples", "env_visibility",
@@ -37,7 +37,7 @@ def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96,
                        model=model, **kw)
     dirs = {v: Path(out_dir) / v for v in views} if isinstance(view, tuple) else \
         {view: Path(out_dir)}
-    cli.render_views(s, dirs, samples, verbose=False, pixel_centres=pixel_centres)
+    cli.render_views(s, dirs, samples, verbose=False, pixel_centres=pixel_centres, engine=engine)
     images = {v: compare.read_image(d / "render.exr") for v, d in dirs.items()}
     scene = json.loads((next(iter(dirs.values())) / "scene.json").read_text())
     return (images if isinstance(view, tuple) else images[view]), scene

@@ -45,7 +45,7 @@ def test_matrix_main_job_writes_a_report(tmp_path):
     out = tmp_path / "m"
     p = run("matrix", "--out", out, "--grid", "2x2", "--size", "48", "--samples", "4")
     assert p.returncode == 0, p.stderr + p.stdout
-    assert "[1/6]" in p.stdout and "[6/6]" in p.stdout
+    assert "[1/7]" in p.stdout and "[7/7]" in p.stdout
     for f in ("report.html", "cook_torrance/render.png", "principled/render.png",
               "compare/diff.png", "compare/metrics.json"):
         assert (out / f).is_file(), f
@@ -55,7 +55,7 @@ def test_matrix_main_job_writes_a_report(tmp_path):
         assert np.isfinite(metrics["overall"][key])
     html = (out / "report.html").read_text()
     assert "cook_torrance/render.png" in html and "compare/diff.png" in html
-    for study in ("split_sum", "unity"):
+    for study in ("split_sum", "unity", "nodes"):
         assert f"{study}/render.png" in html and f"compare_{study}/diff.png" in html
         cells = json.loads((out / f"compare_{study}" / "metrics.json").read_text())["cells"]
         assert all(np.isfinite(c["rel_luminance_error"]) for c in cells)
