@@ -26,3 +26,15 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$STAMP" 2>/dev/null)" != "$want" ]; 
   echo "$want" > "$STAMP"
 fi
 PY="$VENV/bin/python"
+# EEVEE renders headless through Mesa's EGL: install its libraries when they are missing and
+# the system's package manager can be used (otherwise the EEVEE test and --engine eevee fail).
+if ! ldconfig -p 2>/dev/null | grep -q "libEGL.so.1" || ! ldconfig -p 2>/dev/null | grep -q "libgbm.so.1"; then
+  if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
+    echo "ctlab: installing Mesa's EGL for EEVEE (libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1)" >&2
+    apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 >&2 || \
+      echo "ctlab: warning: could not install Mesa's EGL; EEVEE renders will fail" >&2
+  else
+    echo "ctlab: warning: Mesa's EGL (libEGL.so.1, libgbm.so.1) is missing; install libegl1" \
+         "libegl-mesa0 libgl1-mesa-dri libgbm1 for EEVEE" >&2
+  fi
+fi
