@@ -87,12 +87,3 @@ def add_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, sun: bpy.types.O
                 [("r", 'WORLD', world, f'node_tree.nodes["{mapping.name}"].inputs[2].default_value[2]')])
         count += 1
     return count
-
-
-def remove_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
-    if tree.animation_data is None:
-        return
-    prefix = f'nodes["{node.name}"].inputs['
-    for fcurve in list(tree.animation_data.drivers):
-        if fcurve.data_path.startswith(prefix):
-            tree.animation_data.drivers.remove(fcurve)

@@ -183,11 +183,9 @@ def group_node(mat: bpy.types.Material) -> bpy.types.ShaderNodeGroup:
 
 
 def set_group_options(node: bpy.types.ShaderNodeGroup, options: ModelOptions) -> None:
-    from .errors import UserError
-    from .params import BAKED_IBL_MODES, VIEWS
-    if options.ibl not in BAKED_IBL_MODES:
-        raise UserError(f"the node group has no {options.ibl!r} indirect light (it cannot "
-                        f"integrate an HDRI); use one of: {', '.join(BAKED_IBL_MODES)}")
+    from .node_group import require_baked_ibl
+    from .params import VIEWS
+    require_baked_ibl(options.ibl)
     node.inputs["View"].default_value = VIEWS.index(options.view)
     node.inputs["G Smith"].default_value = int(options.g_model == "smith_ggx_correlated")
     node.inputs["Diffuse Lambert"].default_value = int(options.diffuse_model == "lambert")

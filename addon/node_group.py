@@ -15,14 +15,21 @@ from pathlib import Path
 import bpy
 
 from .errors import UserError
-from .params import VIEWS
+from .ibl_bake import DFG_SIZE, LEVEL_COUNT
+from .params import BAKED_IBL_MODES, VIEWS
 from .paths import PACKAGE_ROOT
 
 DESCRIPTION = PACKAGE_ROOT / "node_groups" / "cook_torrance.toml"
 TAG = "ctlab_node_group"
 BAKE_FILE = "ctlab_bake_file"           # texture nodes: which baked file they read
 BAKE_DIM = "ctlab_bake_dim"             # value nodes: that file's width or height
-LEVELS = 7
+
+
+def require_baked_ibl(ibl: str) -> None:
+    """The group reads its indirect light from the bake: it cannot integrate an HDRI."""
+    if ibl not in BAKED_IBL_MODES:
+        raise UserError(f"the node group has no {ibl!r} indirect light (it cannot integrate an "
+                        f"HDRI); use one of: {', '.join(BAKED_IBL_MODES)}")
 
 SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "NodeSocketColor",
                 "VECTOR": "NodeSocketVector", "SHADER": "NodeSocketShader"}
@@ -34,6 +41,9 @@ def load_description(path: Path = DESCRIPTION) -> dict:
         data = tomllib.load(f)
     if list(data["views"]) != list(VIEWS):
         raise UserError(f"{path}: the views must be, in order: {', '.join(VIEWS)}")
+    if data["group"]["dfg_size"] != DFG_SIZE:
+        raise UserError(f"{path}: its DFG lookups are written for {data['group']['dfg_size']}"
+                        f"-texel tables; ibl_bake makes {DFG_SIZE}")
     return data
 
 
@@ -219,7 +229,7 @@ class _Builder:
         if op == "levels":
             x, direction = args
             total = None
-            for k in range(LEVELS):
+            for k in range(LEVEL_COUNT):
                 # hat weight max(0, 1 - |x - k|): the two neighbouring levels, blended linearly
                 w = self.call("math.MAXIMUM", [self.call("math.SUBTRACT", [
                     1.0, self.call("math.ABSOLUTE", [self.call("math.SUBTRACT", [x, float(k)])])]),

@@ -68,9 +68,9 @@ class MatrixSettings:
                 raise UserError(f"image size {n} out of range; use {SIZE_RANGE[0]} to {SIZE_RANGE[1]}")
         if self.shader not in SHADERS:
             raise UserError(f"unknown shader {self.shader!r}; choose one of: {', '.join(SHADERS)}")
-        if self.shader == "nodes" and self.model.ibl not in BAKED_IBL_MODES:
-            raise UserError(f"the node group has no {self.model.ibl!r} indirect light (it "
-                            f"cannot integrate an HDRI); use --ibl {'|'.join(BAKED_IBL_MODES)}")
+        if self.shader == "nodes":
+            from .node_group import require_baked_ibl
+            require_baked_ibl(self.model.ibl)
         vec = self.sun_to_light
         if len(vec) != 3 or not all(math.isfinite(x) for x in vec) or Vector(vec).length < 1e-6:
             raise UserError(f"sun direction {vec} is not a non-zero 3-vector")
