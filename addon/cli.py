@@ -85,14 +85,15 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--verbose", action="store_true", help="show Blender's own output")
 
 
-def matrix_settings(args, shader: str, view: str):
+def matrix_settings(args, shader: str, view: str, ibl: str | None = None):
+    """The scene and model settings from the command line; ``ibl`` overrides --ibl."""
     from .scene_builder import MatrixSettings
     if view not in VIEWS and view != "all":
         raise UserError(f"unknown view {view!r}; choose one of: {', '.join(VIEWS)}")
     rows, cols = parse_grid(args.grid)
     if args.samples < 1 or args.samples > 65536:
         raise UserError(f"samples {args.samples} out of range; use 1 to 65536")
-    ibl = args.ibl or ("split_sum" if shader == "nodes" else IBL_MODES[0])
+    ibl = ibl or args.ibl or ("split_sum" if shader == "nodes" else IBL_MODES[0])
     model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
                          units=args.units, ibl=ibl, env_samples=args.env_samples,
                          env_visibility=args.env_visibility, seed=args.seed)
@@ -209,8 +210,7 @@ def cmd_matrix(args) -> None:
     out = Path(args.out)
     settings = {}
     for folder, _, shader, ibl in MATRIX_RENDERS:
-        args.ibl = ibl
-        settings[folder] = matrix_settings(args, shader, "full")
+        settings[folder] = matrix_settings(args, shader, "full", ibl)
     check_writable(out)
     steps = len(MATRIX_RENDERS) + 2
     timings, scenes = {}, {}
@@ -236,20 +236,22 @@ def cmd_matrix(args) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .renderer import ENGINES
+    from .scene_builder import SHADERS
     parser = argparse.ArgumentParser(prog="ctlab", description="Cook-Torrance Lab batch tools")
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render the sphere matrix with one shader and view")
-    r.add_argument("--shader", required=True, choices=("osl", "nodes", "principled"),
+    r.add_argument("--shader", required=True, choices=SHADERS,
                    help="the OSL shader, the node group (its default IBL: split_sum) or "
                         "Principled BSDF")
     r.add_argument("--out", required=True, help="output folder")
     r.add_argument("--view", default="full",
                    help="|".join(VIEWS) + "|all (all: one sub-folder per view)")
-    r.add_argument("--engine", default="cycles", choices=("cycles", "eevee"),
+    r.add_argument("--engine", default=ENGINES[0], choices=ENGINES,
                    help="cycles (CPU; SVM for the node group) or eevee (node group only)")
     r.add_argument("--pixel-centres", action="store_true",
                    help="every view as one sample at each pixel centre, like the term views "
-                        "(exact per-pixel values, no anti-aliasing; OSL only)")
+                        "(exact per-pixel values, no anti-aliasing; OSL or node group)")
     add_scene_arguments(r)
     r.set_defaults(func=cmd_render)
     c = sub.add_parser("compare", help="compare two render folders")
