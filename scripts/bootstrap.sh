@@ -28,7 +28,10 @@ fi
 PY="$VENV/bin/python"
 # EEVEE renders headless through Mesa's EGL: install its libraries when they are missing and
 # the system's package manager can be used (otherwise the EEVEE test and --engine eevee fail).
-if ! ldconfig -p 2>/dev/null | grep -q "libEGL.so.1" || ! ldconfig -p 2>/dev/null | grep -q "libgbm.so.1"; then
+# (ldconfig's list is read whole first: with pipefail, grep -q closing the pipe early would
+# make the pipeline fail by SIGPIPE.)
+libs="$(ldconfig -p 2>/dev/null || true)"
+if ! grep -q "libEGL.so.1" <<< "$libs" || ! grep -q "libgbm.so.1" <<< "$libs"; then
   if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "ctlab: installing Mesa's EGL for EEVEE (libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1)" >&2
     apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 >&2 || \
