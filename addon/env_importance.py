@@ -22,12 +22,12 @@ import numpy as np
 
 from .hdri import file_hash, load_hdri, write_float_exr
 from .params import REC709_LUMINANCE
-from .paths import cache_dir
+from .paths import atomic_folder, cache_dir
 
 TABLE_SIZE = 4096        # M: resolution of the inverse CDFs
 TILE = 4                 # tile edge in HDRI pixels (a 1024x512 map gives 256x128 tiles)
 FLOOR = 0.01             # every tile gets at least this fraction of the mean weight
-VERSION = 1
+VERSION = 2               # 2: the folder is written whole (paths.atomic_folder)
 
 
 def tile_weights(pixels: np.ndarray, tile: int = TILE) -> np.ndarray:
@@ -77,9 +77,10 @@ def tables_for(hdri_path) -> dict:
              "pdf": folder / "pdf.exr"}
     if all(p.is_file() for p in names.values()):
         return {k: str(v) for k, v in names.items()}
-    marginal, conditional, density = build_tables(tile_weights(load_hdri(hdri_path)))
-    folder.mkdir(parents=True, exist_ok=True)
-    write_float_exr(names["marginal"], marginal)
-    write_float_exr(names["conditional"], conditional)
-    write_float_exr(names["pdf"], density)
+    tables = dict(zip(names, build_tables(tile_weights(load_hdri(hdri_path)))))
+
+    def fill(staging: Path):
+        for name, path in names.items():
+            write_float_exr(staging / path.name, tables[name])
+    atomic_folder(folder, fill)
     return {k: str(v) for k, v in names.items()}

@@ -42,7 +42,7 @@ import numpy as np
 from .errors import UserError
 from .hdri import file_hash, load_hdri, write_float_exr
 from .params import G_MODELS, MIN_ALPHA
-from .paths import cache_dir
+from .paths import atomic_folder, cache_dir
 
 VERSION = 2
 LEVEL_COUNT = 7
@@ -248,23 +248,6 @@ def _params_key() -> str:
     return hashlib.sha256(sig.encode()).hexdigest()[:8]
 
 
-def _atomic_folder(final: Path, fill) -> None:
-    """Run fill(staging) and rename the staging folder to ``final``: whole or not at all.
-    A failed or interrupted fill leaves nothing behind."""
-    staging = final.with_name(f".{final.name}.partial-{os.getpid()}")
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir(parents=True)
-    try:
-        fill(staging)
-        try:
-            staging.rename(final)
-        except OSError:
-            if not final.is_dir():            # another process finished first: keep theirs
-                raise
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-
-
 def dfg_path(g_model: str) -> Path:
     """The DFG table of one G option (independent of the HDRI), built once per cache."""
     size, samples = DFG_SIZE, DFG_SAMPLES[g_model]
@@ -288,7 +271,8 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
     hdri_path = Path(hdri_path)
     if not hdri_path.is_file():
         load_hdri(hdri_path)                    # raises the standard "not found" message
-    folder = cache_dir() / f"ibl-v{VERSION}-{_params_key()}-{file_hash(hdri_path)}"
+    source_hash = file_hash(hdri_path)
+    folder = cache_dir() / f"ibl-v{VERSION}-{_params_key()}-{source_hash}"
     if (folder / INFO_FILE).is_file():
         _report(progress, 1.0, f"cached: {folder}")
         return folder
@@ -332,7 +316,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
         timings[IRRADIANCE_FILE] = round(time.perf_counter() - t, 3)
         for g, path in dfg.items():
             shutil.copyfile(path, stage / dfg_file(g))
-        info = {"version": VERSION, "source": str(hdri_path), "source_hash": file_hash(hdri_path),
+        info = {"version": VERSION, "source": str(hdri_path), "source_hash": source_hash,
                 "source_size": [W, H], "repaired_texels": repaired, "levels": levels,
                 "irradiance": {"file": IRRADIANCE_FILE, "width": irr.shape[1],
                                "height": irr.shape[0], "stores": "E (uniform radiance 1 gives pi)"},
@@ -343,7 +327,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
                 "seconds": round(time.perf_counter() - start, 3), "timings": timings}
         (stage / INFO_FILE).write_text(json.dumps(info, indent=2))
 
-    _atomic_folder(folder, fill)
+    atomic_folder(folder, fill)
     _report(progress, 1.0, f"baked in {time.perf_counter() - start:.2f} s: {folder}")
     return folder
 

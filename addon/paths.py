@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent     # the extension / repository root
@@ -29,6 +30,23 @@ def cache_dir() -> Path:
             path = Path(base) / "cook-torrance-lab"
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def atomic_folder(final: Path, fill) -> None:
+    """Run fill(staging) and rename the staging folder to ``final``: whole or not at all.
+    A failed or interrupted fill leaves nothing behind."""
+    staging = final.with_name(f".{final.name}.partial-{os.getpid()}")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    try:
+        fill(staging)
+        try:
+            staging.rename(final)
+        except OSError:
+            if not final.is_dir():            # another process finished first: keep theirs
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def bundled_hdri(name: str = "forest") -> Path:

@@ -6,10 +6,11 @@ import numpy as np
 from conftest import render, sphere_pixels
 from reference_model import specular_albedo
 from addon.compare import ciede2000, read_image, srgb_to_lab
+from addon.params import REC709_LUMINANCE
 
 A = (0.9, 0.5, 0.2)
 WHITE = dict(grid=(3, 3), size=96, samples=1, sun_strength=0.0, albedo=A, pixel_centres=True)
-Y = np.array([0.2126, 0.7152, 0.0722])
+Y = np.array(REC709_LUMINANCE)
 
 
 def _pixels(scene, normal, margin_px=2):
