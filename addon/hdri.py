@@ -12,13 +12,8 @@ from .errors import UserError
 
 def oiio():
     """Blender's bundled OpenImageIO (never the PyPI wheel: it breaks OSL compilation)."""
-    try:
-        import OpenImageIO
-    except ImportError:
-        import bpy
-        bpy.utils.expose_bundled_modules()
-        import OpenImageIO
-    return OpenImageIO
+    from .compat import bundled_module
+    return bundled_module("OpenImageIO")
 
 
 def file_hash(path: Path) -> str:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import osl_shader
+from . import compat, osl_shader
 from .params import DEFAULT_ALBEDO, ModelOptions, perceptual_roughness
 
 # Per-object custom properties read by the materials (SPEC inputs).
@@ -39,7 +39,7 @@ def _new_material(name: str) -> bpy.types.Material:
         bpy.data.materials.remove(old)
     mat = bpy.data.materials.new(name)
     mat["ctlab_generated"] = True
-    mat.use_nodes = True
+    compat.use_nodes(mat)
     mat.node_tree.nodes.clear()
     return mat
 
@@ -156,7 +156,7 @@ def node_group_material(name="Cook-Torrance (nodes)", options: ModelOptions | No
     from . import node_group
     options = options or ModelOptions()
     lighting = lighting or Lighting()
-    group = node_group.build_group()
+    group = node_group.ensure_group()
     mat = _new_material(name)
     nt = mat.node_tree
     node = nt.nodes.new("ShaderNodeGroup")

@@ -18,11 +18,8 @@ TEXT_NAME = "ctlab_cook_torrance.osl"
 def ensure_oslquery() -> None:
     """Cycles' script-node update imports oslquery; without Blender's bundled modules exposed,
     the node silently gets no sockets and the material renders black."""
-    try:
-        import oslquery  # noqa: F401
-    except ImportError:
-        bpy.utils.expose_bundled_modules()
-        import oslquery  # noqa: F401
+    from .compat import bundled_module
+    bundled_module("oslquery")
 
 
 def shader_text() -> bpy.types.Text:

@@ -28,9 +28,7 @@ OUTPUT_FILES = ("render.exr", "render.png", "scene.json")
 ENGINES = ("cycles", "eevee")
 
 
-def eevee_engine_id() -> str:
-    """EEVEE's engine identifier: BLENDER_EEVEE_NEXT in 4.2 to 4.5, BLENDER_EEVEE from 5.0."""
-    return 'BLENDER_EEVEE_NEXT' if bpy.app.version < (5, 0, 0) else 'BLENDER_EEVEE'
+from .compat import eevee_engine_id  # noqa: E402,F401  (BLENDER_EEVEE_NEXT before 5.0)
 
 
 def configure_eevee(scene: bpy.types.Scene, view: str, samples: int, pixel_centres: bool) -> None:

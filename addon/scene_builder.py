@@ -18,7 +18,7 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
-from . import env_importance, ibl_bake, light_sync, materials
+from . import compat, env_importance, ibl_bake, light_sync, materials
 from .errors import UserError
 from .hdri import load_hdri
 from .params import BAKED_IBL_MODES, DEFAULT_ALBEDO, ModelOptions, matrix_values
@@ -138,7 +138,7 @@ def build_world(s: MatrixSettings, image: bpy.types.Image) -> bpy.types.World:
     name = "Cook-Torrance Lab World"
     world = bpy.data.worlds.get(name) or bpy.data.worlds.new(name)
     world[TAG] = True
-    world.use_nodes = True
+    compat.use_nodes(world)
     nt = world.node_tree
     nt.nodes.clear()
     coords = nt.nodes.new("ShaderNodeTexCoord")

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 import bpy  # noqa: E402
 
-bpy.utils.expose_bundled_modules()
+getattr(bpy.utils, "expose_bundled_modules", lambda: None)()  # 4.4+
 from addon import cli  # noqa: E402
 from addon.params import ModelOptions  # noqa: E402
 from addon.scene_builder import MatrixSettings  # noqa: E402

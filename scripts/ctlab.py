@@ -13,7 +13,7 @@ if ROOT not in sys.path:
 
 import bpy  # noqa: E402  (Blender as a module, or the running Blender)
 
-bpy.utils.expose_bundled_modules()
+getattr(bpy.utils, "expose_bundled_modules", lambda: None)()  # 4.4+
 
 from addon.cli import main  # noqa: E402
 

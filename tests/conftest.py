@@ -17,7 +17,7 @@ os.environ.setdefault("XDG_CACHE_HOME", _CACHE)
 
 import bpy  # noqa: E402
 
-bpy.utils.expose_bundled_modules()
+getattr(bpy.utils, "expose_bundled_modules", lambda: None)()  # 4.4+
 
 from addon import cli, compare  # noqa: E402
 from addon.hdri import write_float_exr  # noqa: E402
