@@ -50,6 +50,20 @@ def bake_progress(fraction: float, message: str) -> None:
     progress(f"  bake {100 * fraction:3.0f}%: {message}")
 
 
+EXIT_CANCELLED = 130
+
+
+class Cancelled(Exception):
+    """The user cancelled the job (the file named by $CTLAB_CANCEL_FILE exists)."""
+
+
+def check_cancelled() -> None:
+    """Between steps: stop when the parent asked (background_job.Job.cancel)."""
+    flag = os.environ.get("CTLAB_CANCEL_FILE")
+    if flag and os.path.exists(flag):
+        raise Cancelled()
+
+
 def warn(message: str) -> None:
     print(f"ctlab: warning: {message}", file=sys.stderr, flush=True)
 
@@ -215,11 +229,13 @@ def cmd_matrix(args) -> None:
     steps = len(MATRIX_RENDERS) + 2
     timings, scenes = {}, {}
     for i, (folder, label, _, _) in enumerate(MATRIX_RENDERS):
+        check_cancelled()
         progress(f"[{i + 1}/{steps}] {label}: grid {args.grid}, {args.size} px, "
                  f"{args.samples} samples")
         scenes[folder] = render_one(settings[folder], out / folder, args.samples, args.verbose)
         timings[label] = scenes[folder]["render_seconds"]
         progress(f"      {timings[label]:.1f} s")
+    check_cancelled()
     progress(f"[{steps - 1}/{steps}] comparing")
     results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
                for cmp_dir, a, b in MATRIX_COMPARISONS}
@@ -282,4 +298,7 @@ def main(argv=None) -> int:
     except UserError as exc:
         print(f"ctlab: error: {exc}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
+    except Cancelled:
+        print("ctlab: cancelled; finished outputs are kept", file=sys.stderr, flush=True)
+        return EXIT_CANCELLED
     return 0

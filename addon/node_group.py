@@ -336,6 +336,22 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     return group
 
 
+SOURCE_HASH = "ctlab_source_hash"
+
+
+def ensure_group() -> bpy.types.ShaderNodeTree:
+    """The node group, reused when it was built from the current description (rebuilding
+    would reset the inputs and links of every material using it), else built."""
+    import hashlib
+    digest = hashlib.sha256(DESCRIPTION.read_bytes()).hexdigest()[:16]
+    group = bpy.data.node_groups.get(load_description()["group"]["name"])
+    if group is not None and group.get(TAG) and group.get(SOURCE_HASH) == digest:
+        return group
+    group = build_group()
+    group[SOURCE_HASH] = digest
+    return group
+
+
 def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
     """Point the group's texture nodes at a bake folder's files (addon/ibl_bake.py)."""
     folder = Path(folder)

@@ -13,12 +13,15 @@ OSL_DIR = PACKAGE_ROOT / "osl"
 def cache_dir() -> Path:
     """A writable cache folder (never the add-on's install folder, which may be read-only).
 
-    Order: $CTLAB_CACHE; the extension's user folder when running as an installed
-    extension; $XDG_CACHE_HOME/cook-torrance-lab; ~/.cache/cook-torrance-lab.
+    Order: $CTLAB_CACHE; the preferences' cache folder; the extension's user folder when
+    running as an installed extension; $XDG_CACHE_HOME/cook-torrance-lab;
+    ~/.cache/cook-torrance-lab.
     """
-    env = os.environ.get("CTLAB_CACHE")
+    from . import preferences
+    env = os.environ.get("CTLAB_CACHE") or preferences.get().cache_folder
     if env:
-        path = Path(env)
+        import bpy
+        path = Path(bpy.path.abspath(env))
     else:
         path = None
         package = __package__.rpartition(".")[0] if __package__ else ""
@@ -28,7 +31,12 @@ def cache_dir() -> Path:
         if path is None:
             base = os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache")
             path = Path(base) / "cook-torrance-lab"
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        from .errors import UserError
+        raise UserError(f"cache folder not usable: {path} ({exc.strerror or exc}); choose "
+                        "another in the add-on's preferences or set CTLAB_CACHE") from None
     return path
 
 

@@ -1,0 +1,550 @@
+"""The add-on's operators. Each validates before it changes anything, reports a UserError as
+an ERROR (headless: bpy.ops raises RuntimeError with the message) and changes only what its
+description says; the ones that edit a user's data are undoable."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import bpy
+from mathutils import Vector
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, StringProperty)
+
+from . import light_sync, model_node, preferences
+from .errors import UserError
+from .params import IBL_LABELS, IBL_MODES, MATRIX_ALBEDO, ModelOptions
+from .properties import VIEW_ITEMS
+from .scene_builder import MAX_GRID, SHADERS, MatrixSettings, build_matrix
+
+_DEFAULTS = MatrixSettings()
+_IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in IBL_MODES)
+_SHADER_LABELS = {"osl": ("Cook-Torrance (OSL)", "The OSL shader (Cycles on the CPU)"),
+                  "nodes": ("Cook-Torrance (Node Group)", "The node group (Cycles and EEVEE)"),
+                  "principled": ("Principled BSDF", "Blender's Principled BSDF, the reference")}
+_SHADER_ITEMS = tuple((s, *_SHADER_LABELS[s]) for s in SHADERS)
+_IMPL_ITEMS = (("PREFERENCES", "Preferences' Default", "The add-on preferences' implementation"),
+               ) + preferences.IMPLEMENTATION_ITEMS
+_SCOPE_ITEMS = (("ACTIVE", "Active Material", "The active object's active material"),
+                ("SELECTED", "Selected Objects", "Every material of the selected objects"))
+
+
+class _progress:
+    """The window manager's progress indicator (a no-op without a window), as a
+    ``progress(fraction, message)`` callable."""
+
+    def __init__(self, context):
+        self.wm = context.window_manager if context.window else None
+
+    def __enter__(self):
+        if self.wm is not None:
+            self.wm.progress_begin(0, 100)
+        return self
+
+    def __call__(self, fraction, message):
+        if self.wm is not None:
+            self.wm.progress_update(int(100 * fraction))
+
+    def __exit__(self, *exc):
+        if self.wm is not None:
+            self.wm.progress_end()
+
+
+def _implementation(choice: str) -> str:
+    return preferences.get().implementation if choice == "PREFERENCES" else choice
+
+
+def _active_material(context):
+    mat = getattr(context, "material", None)
+    if mat is None and context.object is not None:
+        mat = context.object.active_material
+    return mat
+
+
+def _default_hdri() -> str:
+    return bpy.path.abspath(preferences.get().hdri) if preferences.get().hdri else ""
+
+
+# ----------------------------------------------------------------------------------------
+# The sphere matrix and the environment bake
+
+class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
+    """Build a metallic x smoothness matrix of spheres lit by an HDRI and a Sun.
+    Rebuilding replaces only the objects this operator made"""
+    bl_idname = "ctlab.build_sphere_matrix"
+    bl_label = "Build Sphere Matrix"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    rows: IntProperty(name="Rows (smoothness)", default=_DEFAULTS.rows, min=1, max=MAX_GRID)
+    cols: IntProperty(name="Columns (metallic)", default=_DEFAULTS.cols, min=1, max=MAX_GRID)
+    spacing: FloatProperty(name="Spacing", default=_DEFAULTS.spacing, min=0.85, max=10,
+                           unit='LENGTH', description="Distance between sphere centres")
+    albedo: FloatVectorProperty(name="Albedo", subtype='COLOR', size=3, min=0, max=1,
+                                default=MATRIX_ALBEDO)
+    hdri: StringProperty(name="HDRI", subtype='FILE_PATH', default="",
+                         description="Equirectangular HDRI; empty: the preferences' default "
+                                     "HDRI, else Blender's bundled forest.exr")
+    hdri_strength: FloatProperty(name="HDRI Strength", default=1.0, min=0, soft_max=10)
+    hdri_rotation: FloatProperty(name="HDRI Rotation", default=0.0, subtype='ANGLE',
+                                 description="Rotation of the world about Z")
+    sun_direction: FloatVectorProperty(name="Sun Direction", subtype='DIRECTION', size=3,
+                                       default=_DEFAULTS.sun_to_light,
+                                       description="Direction toward the Sun")
+    sun_strength: FloatProperty(name="Sun Strength", default=_DEFAULTS.sun_strength, min=0,
+                                soft_max=20, description="Sun irradiance (W/m²)")
+    shader: EnumProperty(name="Shader", default="osl", items=_SHADER_ITEMS)
+    view: EnumProperty(name="View", default="full", items=VIEW_ITEMS)
+    ibl: EnumProperty(name="Indirect Light", default=IBL_MODES[0], items=_IBL_ITEMS)
+    resolution: IntProperty(name="Resolution", default=512, min=16, max=4096, subtype='PIXEL')
+
+    def execute(self, context):
+        ibl = "split_sum" if self.shader == "nodes" and self.ibl == "reference" else self.ibl
+        settings = MatrixSettings(
+            rows=self.rows, cols=self.cols, spacing=self.spacing, albedo=tuple(self.albedo),
+            hdri=bpy.path.abspath(self.hdri) if self.hdri else _default_hdri(),
+            hdri_strength=self.hdri_strength, hdri_rotation=math.degrees(self.hdri_rotation),
+            sun_to_light=tuple(self.sun_direction), sun_strength=self.sun_strength,
+            shader=self.shader, width=self.resolution, height=self.resolution,
+            model=ModelOptions(view=self.view, ibl=ibl))
+        try:
+            with _progress(context) as progress:
+                build_matrix(context.scene, settings, progress)
+        except UserError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        scene = context.scene
+        scene.render.engine = 'CYCLES'
+        scene.cycles.shading_system = (self.shader == "osl")
+        self.report({'INFO'}, f"Built a {self.rows}x{self.cols} sphere matrix")
+        return {'FINISHED'}
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+
+class CTLAB_OT_bake_environment(bpy.types.Operator):
+    """Bake the split-sum files of an HDRI (pre-filtered specular levels, irradiance and the
+    DFG tables) into the cache, once per image content"""
+    bl_idname = "ctlab.bake_environment"
+    bl_label = "Bake Environment"
+    bl_options = {'REGISTER'}
+
+    filepath: StringProperty(name="HDRI", subtype='FILE_PATH', default="",
+                             description="Equirectangular HDRI; empty: the world's Environment "
+                                         "Texture, else Blender's bundled forest.exr")
+
+    def execute(self, context):
+        from . import ibl_bake
+        from .paths import bundled_hdri
+        path = (bpy.path.abspath(self.filepath) if self.filepath
+                else light_sync.world_hdri_path(context.scene)) or _default_hdri() \
+            or str(bundled_hdri("forest"))
+        warnings = []
+        try:
+            with _progress(context) as progress:
+                folder = ibl_bake.bake(Path(path), progress, warnings.append)
+        except UserError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        for message in warnings:
+            self.report({'WARNING'}, message)
+        context.scene["ctlab_ibl_bake"] = str(folder)
+        self.report({'INFO'}, f"Baked {Path(path).name}: {folder}")
+        return {'FINISHED'}
+
+
+# ----------------------------------------------------------------------------------------
+# Materials
+
+def _assign(obj, mat) -> None:
+    if obj is None or not hasattr(obj.data, "materials"):
+        return
+    if len(obj.material_slots) == 0:
+        obj.data.materials.append(mat)
+    else:
+        obj.material_slots[obj.active_material_index].material = mat
+
+
+class CTLAB_OT_new_material(bpy.types.Operator):
+    """Create a Cook-Torrance material, assign it to the active object's active slot, and
+    light it from the scene's Sun and world"""
+    bl_idname = "ctlab.new_material"
+    bl_label = "New Cook-Torrance Material"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS,
+                                 default="PREFERENCES")
+
+    def execute(self, context):
+        impl = _implementation(self.implementation)
+        mat = bpy.data.materials.new("Cook-Torrance")
+        try:
+            from .compat import use_nodes
+            use_nodes(mat)
+            tree = mat.node_tree
+            tree.nodes.clear()
+            node = model_node.new_node(tree, impl)
+            out = tree.nodes.new("ShaderNodeOutputMaterial")
+            out.location = (400, 0)
+            tree.links.new(model_node.shader_output(node), out.inputs["Surface"])
+            model_node.link_geometry_normal(tree, node)
+            if impl == "nodes":
+                model_node.set_option(node, "ibl", "split_sum")
+            mat.cycles.emission_sampling = 'NONE'
+            with _progress(context):
+                light_sync.sync_material(mat, context.scene)
+        except UserError as exc:
+            bpy.data.materials.remove(mat)
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        _assign(context.object, mat)
+        self.report({'INFO'}, f"New {model_node.IMPLEMENTATION_LABELS[impl]} material "
+                              f"{mat.name!r}")
+        return {'FINISHED'}
+
+
+def _tree_for_adding(context):
+    space = getattr(context, "space_data", None)
+    tree = getattr(space, "edit_tree", None)
+    if tree is not None:
+        return tree if tree.bl_idname == "ShaderNodeTree" else None
+    mat = _active_material(context)
+    return mat.node_tree if mat is not None else None
+
+
+class CTLAB_OT_add_node_group(bpy.types.Operator):
+    """Add the Cook-Torrance Lab node group (the model as shader nodes) to the node tree"""
+    bl_idname = "ctlab.add_node_group"
+    bl_label = "Cook-Torrance Lab"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return _tree_for_adding(context) is not None
+
+    def execute(self, context):
+        tree = _tree_for_adding(context)
+        node = model_node.new_node(tree, "nodes")
+        model_node.set_option(node, "ibl", "split_sum")
+        space = getattr(context, "space_data", None)
+        if hasattr(space, "cursor_location"):
+            node.location = space.cursor_location
+        for other in tree.nodes:
+            other.select = False
+        node.select = True
+        tree.nodes.active = node
+        mat = tree.id_data if isinstance(tree.id_data, bpy.types.Material) else None
+        if mat is not None:
+            try:
+                light_sync.sync_material(mat, context.scene)
+            except UserError as exc:
+                self.report({'WARNING'}, f"added, but not lit: {exc}")
+        return {'FINISHED'}
+
+
+class CTLAB_OT_add_texture(bpy.types.Operator):
+    """Wire an image texture into the active material's Cook-Torrance albedo, or a normal map
+    into its normal"""
+    bl_idname = "ctlab.add_texture"
+    bl_label = "Add Texture"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    slot: EnumProperty(name="Input", items=(("albedo", "Albedo", "A colour texture"),
+                                            ("normal", "Normal Map", "A tangent-space normal map")))
+
+    @classmethod
+    def poll(cls, context):
+        return model_node.find(_active_material(context)) is not None
+
+    def execute(self, context):
+        mat = _active_material(context)
+        tree, node = mat.node_tree, model_node.find(mat)
+        tex = tree.nodes.new("ShaderNodeTexImage")
+        tex.location = (node.location.x - 600, node.location.y - (300 if self.slot == "normal" else 0))
+        if self.slot == "albedo":
+            tree.links.new(tex.outputs["Color"], model_node.surface_input(node, "albedo"))
+        else:
+            nmap = tree.nodes.new("ShaderNodeNormalMap")
+            nmap.location = (node.location.x - 300, node.location.y - 300)
+            tree.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+            tree.links.new(nmap.outputs["Normal"], model_node.surface_input(node, "normal"))
+        tree.nodes.active = tex
+        return {'FINISHED'}
+
+
+class CTLAB_OT_switch_implementation(bpy.types.Operator):
+    """Carry the active material's Cook-Torrance node over to the other implementation,
+    keeping its inputs, links and switches"""
+    bl_idname = "ctlab.switch_implementation"
+    bl_label = "Switch Implementation"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    target: EnumProperty(name="Implementation", items=preferences.IMPLEMENTATION_ITEMS)
+
+    @classmethod
+    def poll(cls, context):
+        return model_node.find(_active_material(context)) is not None
+
+    def execute(self, context):
+        mat = _active_material(context)
+        node = model_node.find(mat)
+        if model_node.implementation(node) == self.target:
+            return {'CANCELLED'}
+        was_reference = model_node.get_option(node, "ibl") == "reference"
+        try:
+            model_node.replace_node(mat.node_tree, node, self.target)
+            light_sync.sync_material(mat, context.scene)
+        except UserError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        if self.target == "osl":
+            context.scene.cycles.shading_system = True
+        note = " (reference indirect light became split-sum)" if was_reference and \
+            self.target == "nodes" else ""
+        self.report({'INFO'}, f"{mat.name}: now the {model_node.IMPLEMENTATION_LABELS[self.target]}"
+                              + note)
+        return {'FINISHED'}
+
+
+def _scope_materials(context, scope: str) -> list:
+    if scope == "ACTIVE":
+        mat = _active_material(context)
+        return [mat] if mat is not None else []
+    seen = []
+    for obj in context.selected_objects:
+        for slot in obj.material_slots:
+            if slot.material is not None and slot.material not in seen:
+                seen.append(slot.material)
+    return seen
+
+
+class _Convert:
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def convert(self, context, mat) -> list:
+        raise NotImplementedError
+
+    def execute(self, context):
+        mats = _scope_materials(context, self.scope)
+        if not mats:
+            self.report({'ERROR'}, "no material to convert: select an object with a material")
+            return {'CANCELLED'}
+        done, skipped = 0, []
+        for mat in mats:
+            try:
+                notes = self.convert(context, mat)
+            except UserError as exc:
+                if self.scope == "ACTIVE":
+                    self.report({'ERROR'}, str(exc))
+                    return {'CANCELLED'}
+                skipped.append(mat.name)
+                continue
+            done += 1
+            if notes:
+                self.report({'WARNING'}, f"{mat.name}: not carried over: {', '.join(notes)}")
+        message = f"converted {done} material{'s' * (done != 1)}"
+        if skipped:
+            message += f"; skipped {', '.join(skipped)} (nothing to convert)"
+        self.report({'INFO'}, message)
+        return {'FINISHED'} if done else {'CANCELLED'}
+
+
+class CTLAB_OT_convert_to_cook_torrance(_Convert, bpy.types.Operator):
+    """Replace Principled BSDF by the Cook-Torrance model (Base Color -> albedo, Roughness ->
+    1 - smoothness, Metallic, Normal; textures stay wired); reports what cannot be mapped"""
+    bl_idname = "ctlab.convert_to_cook_torrance"
+    bl_label = "Principled to Cook-Torrance"
+
+    scope: EnumProperty(name="Materials", items=_SCOPE_ITEMS, default="ACTIVE")
+    implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS,
+                                 default="PREFERENCES")
+
+    def convert(self, context, mat):
+        from .convert import principled_to_model
+        return principled_to_model(mat, context.scene, _implementation(self.implementation))
+
+
+class CTLAB_OT_convert_to_principled(_Convert, bpy.types.Operator):
+    """Replace the Cook-Torrance model by a Principled BSDF (albedo -> Base Color, 1 -
+    smoothness -> Roughness, Metallic, Normal; textures stay wired)"""
+    bl_idname = "ctlab.convert_to_principled"
+    bl_label = "Cook-Torrance to Principled"
+
+    scope: EnumProperty(name="Materials", items=_SCOPE_ITEMS, default="ACTIVE")
+
+    def convert(self, context, mat):
+        from .convert import model_to_principled
+        return model_to_principled(mat)
+
+
+class CTLAB_OT_set_view_all(bpy.types.Operator):
+    """Show the same view (the lit result or one term) on every Cook-Torrance material"""
+    bl_idname = "ctlab.set_view_all"
+    bl_label = "Set View on All"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    view: EnumProperty(name="View", items=VIEW_ITEMS, default="full")
+
+    def execute(self, context):
+        count = 0
+        for _mat, node in model_node.model_materials():
+            model_node.set_option(node, "view", self.view)
+            count += 1
+        self.report({'INFO'}, f"view {self.view} on {count} material{'s' * (count != 1)}")
+        return {'FINISHED'}
+
+
+class CTLAB_OT_sync_lighting(bpy.types.Operator):
+    """Drive every Cook-Torrance material's key light from the key Sun and its HDRI from the
+    world (done by itself when they change; this redoes it now)"""
+    bl_idname = "ctlab.sync_lighting"
+    bl_label = "Sync Lighting"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        count = 0
+        try:
+            for mat, _node in list(model_node.model_materials()):
+                if not mat.get("ctlab_matrix"):
+                    light_sync.sync_material(mat, context.scene)
+                    count += 1
+        except UserError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        sun = light_sync.key_sun(context.scene)
+        self.report({'INFO'}, f"{count} material{'s' * (count != 1)} follow "
+                              f"{sun.name if sun else 'no Sun'} and the world")
+        return {'FINISHED'}
+
+
+# ----------------------------------------------------------------------------------------
+# The comparison job in the background
+
+JOBS: dict = {}                  # "comparison" -> background_job.Job
+
+
+def _job_tick():
+    """Timer: copy the job's progress into the window manager and redraw; stop when over."""
+    job = JOBS.get("comparison")
+    if job is None:
+        return None
+    state = job.poll()
+    wm = bpy.context.window_manager
+    wm.ctlab_job_progress, wm.ctlab_job_message, wm.ctlab_job_state = \
+        job.fraction, job.message, state
+    for window in wm.windows:
+        for area in window.screen.areas:
+            if area.type == 'VIEW_3D':
+                area.tag_redraw()
+    if state in ("running", "cancelling"):
+        return 0.5
+    if state == "done" and job.open_report and not bpy.app.background:
+        bpy.ops.wm.url_open(url=job.report.as_uri())
+    return None
+
+
+def default_comparison_folder() -> str:
+    if bpy.data.filepath:
+        return "//ctlab_comparison"
+    from .paths import cache_dir
+    return str(cache_dir().parent / "comparison")
+
+
+class CTLAB_OT_render_comparison(bpy.types.Operator):
+    """Render the sphere matrix with Cook-Torrance and Principled BSDF in a background
+    process and compare them cell by cell; the report opens when done"""
+    bl_idname = "ctlab.render_comparison"
+    bl_label = "Render Comparison"
+    bl_options = {'REGISTER'}
+
+    directory: StringProperty(name="Output Folder", subtype='DIR_PATH', default="",
+                              description="Empty: //ctlab_comparison next to the .blend, or "
+                                          "the add-on's user folder")
+    rows: IntProperty(name="Rows", default=5, min=1, max=MAX_GRID)
+    cols: IntProperty(name="Columns", default=5, min=1, max=MAX_GRID)
+    size: IntProperty(name="Size", default=384, min=16, max=4096, subtype='PIXEL')
+    samples: IntProperty(name="Samples", default=0, min=0, max=65536,
+                         description="0: the preferences' default samples")
+    open_report: BoolProperty(name="Open Report", default=True)
+
+    def execute(self, context):
+        from . import background_job
+        from .renderer import check_writable
+        running = JOBS.get("comparison")
+        if running is not None and running.poll() in ("running", "cancelling"):
+            self.report({'ERROR'}, "a comparison is already running; cancel it first")
+            return {'CANCELLED'}
+        out = Path(bpy.path.abspath(self.directory or default_comparison_folder()))
+        scene = context.scene
+        hdri = light_sync.world_hdri_path(scene) or _default_hdri()
+        argv = ["matrix", "--out", str(out), "--grid", f"{self.rows}x{self.cols}",
+                "--size", str(self.size),
+                "--samples", str(self.samples or preferences.get().samples)]
+        if hdri:
+            argv += ["--hdri", hdri]
+        background, mapping = light_sync.world_nodes(scene.world)
+        if background is not None and hdri:
+            argv += ["--hdri-strength", f"{background.inputs['Strength'].default_value:.6g}"]
+        if mapping is not None and hdri:
+            argv += ["--hdri-rotation",
+                     f"{math.degrees(mapping.inputs['Rotation'].default_value[2]):.6g}"]
+        sun = light_sync.key_sun(scene)
+        if sun is not None:
+            z = sun.matrix_world.to_quaternion() @ Vector((0.0, 0.0, 1.0))
+            argv += ["--sun-dir", ",".join(f"{c:.6g}" for c in z),
+                     "--sun-strength", f"{sun.data.energy:.6g}"]
+        try:
+            check_writable(out)
+            if hdri:
+                from .hdri import load_hdri
+                load_hdri(Path(hdri))
+        except UserError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        job = background_job.Job(argv, out)
+        job.open_report = self.open_report
+        JOBS["comparison"] = job
+        context.window_manager.ctlab_job_state = "running"
+        context.window_manager.ctlab_job_message = "starting"
+        context.window_manager.ctlab_job_progress = 0.0
+        bpy.app.timers.register(_job_tick, first_interval=0.5)
+        self.report({'INFO'}, f"comparison started in the background -> {out}")
+        return {'FINISHED'}
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+
+class CTLAB_OT_cancel_comparison(bpy.types.Operator):
+    """Stop the background comparison after its current render; finished renders are kept"""
+    bl_idname = "ctlab.cancel_comparison"
+    bl_label = "Cancel Comparison"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context):
+        job = JOBS.get("comparison")
+        return job is not None and job.state == "running"
+
+    def execute(self, context):
+        JOBS["comparison"].cancel()
+        context.window_manager.ctlab_job_state = "cancelling"
+        return {'FINISHED'}
+
+
+def stop_jobs() -> None:
+    """On unregister: no child process or timer may outlive the add-on."""
+    job = JOBS.pop("comparison", None)
+    if job is not None and job.process.poll() is None:
+        job.process.kill()
+        job.process.wait()
+    if bpy.app.timers.is_registered(_job_tick):
+        bpy.app.timers.unregister(_job_tick)
+
+
+CLASSES = (CTLAB_OT_build_sphere_matrix, CTLAB_OT_bake_environment, CTLAB_OT_new_material,
+           CTLAB_OT_add_node_group, CTLAB_OT_add_texture, CTLAB_OT_switch_implementation,
+           CTLAB_OT_convert_to_cook_torrance, CTLAB_OT_convert_to_principled,
+           CTLAB_OT_set_view_all, CTLAB_OT_sync_lighting, CTLAB_OT_render_comparison,
+           CTLAB_OT_cancel_comparison)

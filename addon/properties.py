@@ -1,0 +1,108 @@
+"""Properties the add-on adds to Blender's data, registered and removed together.
+
+- ``Material.ctlab_view``, ``ctlab_g_model``, ``ctlab_diffuse_model``, ``ctlab_units``,
+  ``ctlab_ibl``: dropdowns that read and write the material's Cook-Torrance node itself (get/set
+  functions), so they can never disagree with it; unusable on materials without the model.
+- ``Scene.ctlab_sun``: the Sun the model's key light follows (empty: the scene's first Sun).
+- ``WindowManager.ctlab_job_*``: the background comparison's progress, for the sidebar.
+"""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import EnumProperty, FloatProperty, PointerProperty, StringProperty
+
+from . import model_node
+from .params import IBL_LABELS
+
+_LABELS = {"cook_torrance": "Cook-Torrance", "smith_ggx_correlated": "Smith (height-correlated)",
+           "disney": "Disney", "lambert": "Lambert", "physical": "Physical", "unity": "Unity",
+           "NdotL": "N·L", "NdotV": "N·V", "NdotH": "N·H", "VdotH": "V·H", "D": "D", "F": "F",
+           "G": "G", "spec_color": "Specular Colour", "specular_brdf": "Specular BRDF",
+           "diffuse_brdf": "Diffuse BRDF"}
+
+
+def label(value: str) -> str:
+    return _LABELS.get(value) or IBL_LABELS.get(value, (None,))[0] or \
+        value.replace("_", " ").title()
+
+
+def _items(key):
+    return tuple((v, label(v), "") for v in model_node.OPTIONS[key])
+
+
+# EnumProperty items must be module-level (the annotations below are evaluated lazily).
+VIEW_ITEMS = _items("view")
+G_ITEMS = _items("g_model")
+DIFFUSE_ITEMS = _items("diffuse_model")
+UNITS_ITEMS = _items("units")
+IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in model_node.OPTIONS["ibl"])
+
+
+def _option_property(key: str, name: str, items, description: str):
+    values = model_node.OPTIONS[key]
+
+    def get(mat):
+        node = model_node.find(mat)
+        return values.index(model_node.get_option(node, key)) if node is not None else 0
+
+    def set_(mat, index):
+        from .errors import UserError
+        node = model_node.find(mat)
+        if node is None:
+            return
+        try:
+            model_node.set_option(node, key, values[index])
+            if key == "ibl":
+                from . import light_sync
+                light_sync.update_environment(node, bpy.context.scene)
+        except UserError as exc:           # a setter cannot report: the console, and no change
+            print(f"Cook-Torrance Lab: {exc}")
+
+    return EnumProperty(name=name, items=items, get=get, set=set_, description=description)
+
+
+def _sun_poll(self, obj):
+    return obj.type == 'LIGHT' and obj.data.type == 'SUN'
+
+
+def _sun_changed(scene, context):
+    from . import light_sync
+    for mat, _ in model_node.model_materials():
+        if not mat.get("ctlab_matrix"):
+            light_sync.sync_material(mat, scene, environment=False)
+
+
+def register() -> None:
+    M = bpy.types.Material
+    M.ctlab_view = _option_property("view", "View", VIEW_ITEMS,
+                                    "What the material shows: the lit result or one term alone")
+    M.ctlab_g_model = _option_property("g_model", "Geometry (G)", G_ITEMS,
+                                       "The geometry / shadowing-masking term")
+    M.ctlab_diffuse_model = _option_property("diffuse_model", "Diffuse", DIFFUSE_ITEMS,
+                                             "The diffuse term")
+    M.ctlab_units = _option_property("units", "Units", UNITS_ITEMS,
+                                     "Physical, or Unity's (x pi on direct light)")
+    M.ctlab_ibl = _option_property("ibl", "Indirect Light", IBL_ITEMS,
+                                   "How the HDRI lights the surface")
+    bpy.types.Scene.ctlab_sun = PointerProperty(
+        name="Key Sun", type=bpy.types.Object, poll=_sun_poll, update=_sun_changed,
+        description="The Sun the Cook-Torrance key light follows; empty: the scene's first Sun")
+    W = bpy.types.WindowManager
+    W.ctlab_job_progress = FloatProperty(name="Progress", subtype='FACTOR', min=0, max=1)
+    W.ctlab_job_message = StringProperty(name="Comparison")
+    W.ctlab_job_state = StringProperty(name="State")
+
+
+NAMES = ((bpy.types.Material, ("ctlab_view", "ctlab_g_model", "ctlab_diffuse_model",
+                               "ctlab_units", "ctlab_ibl")),
+         (bpy.types.Scene, ("ctlab_sun",)),
+         (bpy.types.WindowManager, ("ctlab_job_progress", "ctlab_job_message",
+                                    "ctlab_job_state")))
+
+
+def unregister() -> None:
+    for owner, names in NAMES:
+        for name in names:
+            if hasattr(owner, name):
+                delattr(owner, name)
