@@ -40,7 +40,11 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
         bpy.utils.expose_bundled_modules()
         bpy.ops.extensions.package_install_files(filepath={str(zips[0])!r}, repo="user_default",
                                                  enable_on_install=True)
-        assert "bl_ext.user_default.cook_torrance_lab" in bpy.context.preferences.addons
+        addon = bpy.context.preferences.addons["bl_ext.user_default.cook_torrance_lab"]
+        assert addon.preferences.implementation == "nodes" and addon.preferences.samples == 64
+        print("CLASSES=" + ",".join(sorted(n for n in dir(bpy.types) if n.startswith("CTLAB_"))))
+        print("PROPS=" + ",".join(sorted(n for n in dir(bpy.types.Material) if n.startswith("ctlab_"))))
+        print("MENU=" + ",".join(f.__name__ for f in bpy.types.NODE_MT_add._dyn_ui_initialize()))
         user = bpy.data.objects.new("User Empty", None)
         bpy.context.scene.collection.objects.link(user)
         for _ in range(2):
@@ -73,3 +77,11 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
                        timeout=300)
     assert "EXTENSION-OK" in p.stdout, p.stdout[-2000:] + p.stderr[-2000:]
+    # the same panels, operators, preferences, properties and menu entry as the source tree
+    from addon import properties, register, ui
+    lines = dict(line.split("=", 1) for line in p.stdout.splitlines()
+                 if line.startswith(("CLASSES=", "PROPS=", "MENU=")))
+    assert lines["CLASSES"].split(",") == sorted(c.__name__ for c in register.CLASSES
+                                                 if "_OT_" in c.__name__ or "_PT_" in c.__name__)
+    assert lines["PROPS"].split(",") == sorted(properties.NAMES[0][1])
+    assert ui.draw_add_menu.__name__ in lines["MENU"].split(",")

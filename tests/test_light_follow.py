@@ -1,0 +1,93 @@
+"""Moving the Sun and rotating the HDRI the usual Blender way changes the next render of a
+Cook-Torrance material as it changes a Principled one: two spheres, Principled and its
+conversion, rendered before and after; the two change images must agree."""
+
+import math
+
+import bpy
+import numpy as np
+
+from addon import register, renderer, scene_builder
+from addon.compare import read_image
+from addon.paths import bundled_hdri
+
+W, H, PX_PER_M = 128, 64, 32.0
+CENTRES = {"principled": -1.0, "cook_torrance": 1.0}      # sphere centres (m) along X
+RADIUS = 0.8
+
+
+def _scene():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.world = scene_builder.build_world(scene_builder.MatrixSettings(),
+                                            scene_builder.load_image(bundled_hdri("forest")))
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.type = 'ORTHO'
+    cam.data.ortho_scale = W / PX_PER_M
+    cam.location = (0.0, -10.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
+    sun.data.energy, sun.data.angle = 4.0, 0.0
+    sun.rotation_euler = (math.radians(-50), math.radians(-30), 0.0)
+    scene.collection.objects.link(sun)
+    gold = bpy.data.materials.new("Gold")
+    gold.use_nodes = True
+    bsdf = gold.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (1.0, 0.766, 0.336, 1.0)
+    bsdf.inputs["Metallic"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = 0.4
+    objects = {}
+    for name, x in CENTRES.items():
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=RADIUS, location=(x, 0.0, 0.0),
+                                             segments=64, ring_count=32)
+        obj = bpy.context.object
+        obj.name = name
+        bpy.ops.object.shade_smooth()
+        obj.visible_glossy = obj.visible_diffuse = False       # the spheres do not see each other
+        obj.data.materials.append(gold if name == "principled" else gold.copy())
+        objects[name] = obj
+    for obj in bpy.context.selected_objects:
+        obj.select_set(False)
+    objects["cook_torrance"].select_set(True)
+    bpy.context.view_layer.objects.active = objects["cook_torrance"]
+    assert bpy.ops.ctlab.convert_to_cook_torrance(implementation="nodes") == {'FINISHED'}
+    renderer.configure(scene, "nodes", "full", 64)        # Cycles SVM, no denoising
+    scene.cycles.max_bounces = 0            # direct light: what the model's integrator covers
+    return scene, sun
+
+
+def _luminance(image):
+    return image @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+
+
+def _sphere(image, name):
+    """The sphere's pixels (an inner disc) as an array aligned between the two spheres."""
+    cx = W / 2 + CENTRES[name] * PX_PER_M
+    yy, xx = np.mgrid[0:H, 0:W] + 0.5
+    r = 0.9 * RADIUS * PX_PER_M
+    return image[(xx - cx) ** 2 + (yy - H / 2) ** 2 < r * r]
+
+
+def test_sun_and_hdri_rotation_change_cook_torrance_like_principled(tmp_path):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    register.register()
+    try:
+        scene, sun = _scene()
+        renderer.render(scene, tmp_path / "before", {})
+        before = _luminance(read_image(tmp_path / "before" / "render.exr"))
+        sun.rotation_euler = (math.radians(40), math.radians(35), 0.0)        # the usual way
+        mapping = next(n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value[2] = math.radians(120)
+        renderer.render(scene, tmp_path / "after", {})
+        after = _luminance(read_image(tmp_path / "after" / "render.exr"))
+    finally:
+        register.unregister()
+    change = {name: _sphere(after, name) - _sphere(before, name) for name in CENTRES}
+    p, c = change["principled"], change["cook_torrance"]
+    assert np.abs(p).mean() > 0.2 * _sphere(before, "principled").mean()   # a real change
+    corr = np.corrcoef(p, c)[0, 1]
+    ratio = np.abs(c).mean() / np.abs(p).mean()
+    assert corr > 0.9 and 0.75 < ratio < 1.33, (corr, ratio)
