@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Run the test suite against several Blender-as-a-module releases, each in its own virtual
+# environment (.venv-bpy<series>, created on first use), and write the result table to
+# docs/versions.md. Usage: ./scripts/version_matrix.sh [4.2 4.5 5.0] [-- pytest arguments]
+# The series' newest patch release is used; numpy is whatever that bpy wheel asks for.
+set -uo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+series=(); extra=()
+while [ $# -gt 0 ]; do
+  if [ "$1" = "--" ]; then shift; extra=("$@"); break; fi
+  series+=("$1"); shift
+done
+[ ${#series[@]} -eq 0 ] && series=(4.2 4.5 5.0)
+PYTHON="${CTLAB_PYTHON:-python3.11}"
+command -v "$PYTHON" >/dev/null || { echo "version_matrix: error: $PYTHON not found; set CTLAB_PYTHON" >&2; exit 2; }
+LOG="$ROOT/out/versions"; mkdir -p "$LOG"
+rows=()
+for s in "${series[@]}"; do
+  venv="$ROOT/.venv-bpy$s"
+  if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import bpy" 2>/dev/null; then
+    echo "version_matrix: installing bpy $s.* into $venv" >&2
+    rm -rf "$venv"
+    "$PYTHON" -m venv "$venv" && "$venv/bin/python" -m pip install --quiet \
+      --disable-pip-version-check "bpy==$s.*" "numpy<2" pytest >&2 || { rows+=("| $s | — | install failed |"); continue; }
+  fi
+  # bpy 5.0's wheel carries libtbb.so.12 in bpy/lib but does not find it on every system
+  export LD_LIBRARY_PATH="$venv/lib/python3.11/site-packages/bpy/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+  version="$("$venv/bin/python" -c 'import bpy; print(bpy.app.version_string)' 2>/dev/null | tail -1)"
+  echo "version_matrix: bpy $version: running the suite (log: $LOG/$s.log)" >&2
+  start=$(date +%s)
+  "$venv/bin/python" -m pytest tests -q -ra -p no:cacheprovider "${extra[@]}" > "$LOG/$s.log" 2>&1
+  rc=$?
+  secs=$(( $(date +%s) - start ))
+  summary="$(grep -E '^(=+ )?[0-9]+ (passed|failed)|(passed|failed|error).* in [0-9.]+s' "$LOG/$s.log" | tail -1 | sed 's/=//g; s/^ *//; s/ *$//')"
+  verdict=$([ $rc -eq 0 ] && echo pass || echo FAIL)
+  rows+=("| $version | $verdict | ${summary:-exit $rc} (${secs} s) |")
+done
+{
+  echo "# Blender versions"
+  echo
+  echo "Made by \`./scripts/version_matrix.sh ${series[*]}\` on $(date -u +%Y-%m-%d) (bpy from PyPI,"
+  echo "Python $("$PYTHON" -c 'import platform; print(platform.python_version())'), $(nproc) cores, CPU only)."
+  echo
+  echo "| bpy | suite | pytest summary |"
+  echo "|---|---|---|"
+  printf '%s\n' "${rows[@]}"
+} > "$ROOT/docs/versions.md.tmp" && mv "$ROOT/docs/versions.md.tmp" "$ROOT/docs/versions.md"
+cat "$ROOT/docs/versions.md"
+grep -q FAIL "$ROOT/docs/versions.md" && exit 1 || exit 0
