@@ -71,9 +71,12 @@ def warn(message: str) -> None:
 # ---------------------------------------------------------------------------------------
 
 def add_scene_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--grid", default="7x7", help="ROWSxCOLS of the sphere matrix (default 7x7)")
-    p.add_argument("--size", type=int, default=512, help="image width and height in pixels")
-    p.add_argument("--samples", type=int, default=64, help="render samples per pixel")
+    p.add_argument("--grid", default=None,
+                   help="ROWSxCOLS of the sphere matrix (default 7x7; 5x3 with --parity)")
+    p.add_argument("--size", type=int, default=None,
+                   help="image width and height in pixels (default 512; 384 with --parity)")
+    p.add_argument("--samples", type=int, default=None,
+                   help="render samples per pixel (default 64; 256 with --parity)")
     p.add_argument("--hdri", default="", help="equirectangular HDRI (default: Blender's forest.exr)")
     p.add_argument("--hdri-strength", type=float, default=1.0)
     p.add_argument("--hdri-rotation", type=float, default=0.0, help="degrees about Z")
@@ -97,6 +100,16 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--principled-distribution", default="MULTI_GGX", choices=("MULTI_GGX", "GGX"))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--verbose", action="store_true", help="show Blender's own output")
+
+
+DEFAULTS = {"grid": "7x7", "size": 512, "samples": 64}
+PARITY_DEFAULTS = {"grid": "5x3", "size": 384, "samples": 256}
+
+
+def fill_defaults(args, defaults: dict) -> None:
+    for key, value in defaults.items():
+        if getattr(args, key, None) is None:
+            setattr(args, key, value)
 
 
 def matrix_settings(args, shader: str, view: str, ibl: str | None = None):
@@ -200,19 +213,49 @@ def cmd_bake(args) -> None:
     progress(f"done: {folder}: {names}")
 
 
-# The matrix job's renders: (folder, label, shader, IBL mode).
-MATRIX_RENDERS = (("cook_torrance", "Cook-Torrance (OSL, reference IBL)", "osl", "reference"),
-                  ("principled", "Principled BSDF", "principled", "reference"),
-                  ("split_sum", "Cook-Torrance (OSL, split-sum IBL)", "osl", "split_sum"),
-                  ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity"),
-                  ("nodes", "Cook-Torrance (node group, split-sum IBL)", "nodes", "split_sum"))
+SMITH = {"g_model": "smith_ggx_correlated"}
+# The matrix job's renders: (folder, label, shader, IBL mode, settings changed from the
+# command line's). The last three are the intermediate configurations of the attribution.
+MATRIX_RENDERS = (
+    ("cook_torrance", "Cook-Torrance (OSL, reference IBL)", "osl", "reference", {}),
+    ("principled", "Principled BSDF", "principled", "reference", {}),
+    ("split_sum", "Cook-Torrance (OSL, split-sum IBL)", "osl", "split_sum", {}),
+    ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity", {}),
+    ("nodes", "Cook-Torrance (node group, split-sum IBL)", "nodes", "split_sum", {}),
+    ("attr_smith", "Cook-Torrance with Smith G", "osl", "reference", SMITH),
+    ("attr_smith_lambert", "Cook-Torrance with Smith G and Lambert diffuse", "osl", "reference",
+     dict(SMITH, diffuse_model="lambert")),
+    ("attr_principled_ggx", "Principled BSDF (single-scatter GGX)", "principled", "reference",
+     {"principled_distribution": "GGX"}))
 # Its comparisons: (folder, render, against). The model against Principled; the baked IBL
 # modes against the reference integration (the accuracy study of the split-sum); the node
-# group against the OSL shader in the same mode (parity).
+# group against the OSL shader in the same mode (parity); the attribution's steps.
 MATRIX_COMPARISONS = (("compare", "cook_torrance", "principled"),
                       ("compare_split_sum", "split_sum", "cook_torrance"),
                       ("compare_unity", "unity", "cook_torrance"),
-                      ("compare_nodes", "nodes", "split_sum"))
+                      ("compare_nodes", "nodes", "split_sum"),
+                      ("compare_attr_smith", "attr_smith", "principled"),
+                      ("compare_attr_smith_lambert", "attr_smith_lambert", "principled"),
+                      ("compare_attr_ggx", "attr_smith_lambert", "attr_principled_ggx"))
+# The attribution: the error against Principled after each switch (comparison folder, the
+# switch it follows).
+ATTRIBUTION = (("compare", "seed model"),
+               ("compare_attr_smith", "G: Cook-Torrance to Smith"),
+               ("compare_attr_smith_lambert", "diffuse: Disney to Lambert"),
+               ("compare_attr_ggx", "Principled: multiscatter to single-scatter GGX"))
+# The white furnace (addon/energy.py): (folder, G model).
+FURNACE_RENDERS = (("furnace_cook_torrance", "cook_torrance"),
+                   ("furnace_smith", "smith_ggx_correlated"))
+
+
+def with_overrides(settings, overrides: dict):
+    """A copy of the settings with model switches or scene fields replaced."""
+    import copy
+    s = copy.deepcopy(settings)
+    for key, value in overrides.items():
+        setattr(s.model if hasattr(s.model, key) else s, key, value)
+    s.validate()
+    return s
 
 
 def cmd_matrix(args) -> None:
@@ -221,34 +264,102 @@ def cmd_matrix(args) -> None:
     from .compare import compare
     from .renderer import check_writable
     from .report import write_report
-    out = Path(args.out)
+    from . import energy
+    if args.parity:
+        return cmd_parity(args)
+    out = Path(args.out or "out/matrix")
     settings = {}
-    for folder, _, shader, ibl in MATRIX_RENDERS:
-        settings[folder] = matrix_settings(args, shader, "full", ibl)
+    for folder, _, shader, ibl, overrides in MATRIX_RENDERS:
+        settings[folder] = with_overrides(matrix_settings(args, shader, "full", ibl), overrides)
+    for folder, g_model in FURNACE_RENDERS:
+        settings[folder] = energy.furnace_settings(g_model, args.env_samples, args.seed)
     check_writable(out)
-    steps = len(MATRIX_RENDERS) + 2
+    steps = len(settings) + 2
     timings, scenes = {}, {}
-    for i, (folder, label, _, _) in enumerate(MATRIX_RENDERS):
+    labels = {folder: label for folder, label, *_ in MATRIX_RENDERS}
+    labels.update({folder: f"White furnace, {g} G" for folder, g in FURNACE_RENDERS})
+    for i, (folder, s) in enumerate(settings.items()):
         check_cancelled()
-        progress(f"[{i + 1}/{steps}] {label}: grid {args.grid}, {args.size} px, "
-                 f"{args.samples} samples")
-        scenes[folder] = render_one(settings[folder], out / folder, args.samples, args.verbose)
-        timings[label] = scenes[folder]["render_seconds"]
-        progress(f"      {timings[label]:.1f} s")
+        progress(f"[{i + 1}/{steps}] {labels[folder]}: grid {s.rows}x{s.cols}, "
+                 f"{s.width}x{s.height} px, {args.samples} samples")
+        scenes[folder] = render_one(s, out / folder, args.samples, args.verbose)
+        timings[labels[folder]] = scenes[folder]["render_seconds"]
+        progress(f"      {timings[labels[folder]]:.1f} s")
     check_cancelled()
     progress(f"[{steps - 1}/{steps}] comparing")
     results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
                for cmp_dir, a, b in MATRIX_COMPARISONS}
+    from .compare import read_image
+    furnace = {g: energy.directional_albedo(read_image(out / folder / "render.exr"),
+                                            scenes[folder])
+               for folder, g in FURNACE_RENDERS}
     progress(f"[{steps}/{steps}] writing the report")
-    labels = {folder: label for folder, label, _, _ in MATRIX_RENDERS}
     report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
-                                for cmp_dir, a, b in MATRIX_COMPARISONS],
-                          scenes["cook_torrance"], timings)
+                                for cmp_dir, a, b in MATRIX_COMPARISONS[:4]],
+                          scenes["cook_torrance"], timings,
+                          attribution=[(label, results[c]) for c, label in ATTRIBUTION],
+                          furnace=furnace)
     de = {cmp_dir: results[cmp_dir]["overall"]["ciede2000_mean"] for cmp_dir in results}
     progress(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
              f"(PSNR {results['compare']['overall']['psnr_db']:.2f} dB); split-sum against "
              f"the reference {de['compare_split_sum']:.2f}, Unity {de['compare_unity']:.2f}; "
              f"node group against OSL {de['compare_nodes']:.3f}; open {report}")
+
+
+PARITY_HDRIS = ("forest", "studio")
+PARITY_BOUND = 1.0            # per-sphere mean CIEDE2000 (issue 6)
+PARITY_MODEL = dict(g_model="smith_ggx_correlated", diffuse_model="lambert", metallic=1.0,
+                    sun_strength=0.0, mutual_shadows=False)
+
+
+def cmd_parity(args) -> None:
+    """The Principled-parity check: with Smith G, Lambert diffuse, metallic 1, the Sun off and
+    no sphere shadowing another, the model is Principled BSDF's single-scatter GGX metal, so
+    our reference integration and Cycles' path tracer must agree up to noise."""
+    from .compare import compare
+    from .paths import bundled_hdri
+    from .renderer import check_writable
+    from .report import write_parity_report
+    out = Path(args.out or "out/parity")
+    if args.hdri:
+        hdris = [Path(args.hdri)]
+    else:
+        names = [n.strip() for n in args.parity_hdris.split(",") if n.strip()]
+        hdris = [bundled_hdri(n) for n in names]
+        missing = [str(h) for h in hdris if not h.is_file()]
+        if missing or not hdris:
+            raise UserError(f"unknown bundled HDRI in --parity-hdris {args.parity_hdris!r}; "
+                            "choose from: city, courtyard, forest, interior, night, studio, "
+                            "sunrise, sunset")
+    jobs = []
+    for hdri in hdris:
+        args.hdri = str(hdri)
+        ct = with_overrides(matrix_settings(args, "osl", "full", "reference"), PARITY_MODEL)
+        pr = with_overrides(matrix_settings(args, "principled", "full", "reference"),
+                            dict(PARITY_MODEL, principled_distribution="GGX"))
+        jobs.append((hdri.stem, ct, pr))
+    check_writable(out)
+    steps, step, entries = 2 * len(jobs) + 1, 0, []
+    for name, ct, pr in jobs:
+        scenes = {}
+        for folder, s in (("cook_torrance", ct), ("principled", pr)):
+            check_cancelled()
+            step += 1
+            progress(f"[{step}/{steps}] {name}: {folder}, grid {args.grid}, {args.size} px, "
+                     f"{args.samples} samples")
+            scenes[folder] = render_one(s, out / name / folder, args.samples, args.verbose)
+        result = compare(out / name / "cook_torrance", out / name / "principled",
+                         out / name / "compare")
+        worst = max(c["ciede2000_mean"] for c in result["cells"])
+        progress(f"      {name}: mean CIEDE2000 {result['overall']['ciede2000_mean']:.2f}, "
+                 f"worst sphere {worst:.2f} (bound {PARITY_BOUND})")
+        entries.append((name, result, scenes["cook_torrance"]))
+    progress(f"[{steps}/{steps}] writing the report")
+    report = write_parity_report(out, entries, PARITY_BOUND)
+    verdict = all(max(c["ciede2000_mean"] for c in r["cells"]) <= PARITY_BOUND
+                  for _, r, _ in entries)
+    progress(f"done: parity {'holds' if verdict else 'FAILS'} (every sphere's mean CIEDE2000 "
+             f"<= {PARITY_BOUND}); open {report}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -281,7 +392,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="", help="also copy the files into this folder")
     b.set_defaults(func=cmd_bake)
     m = sub.add_parser("matrix", help="the main job: Cook-Torrance vs Principled, with a report")
-    m.add_argument("--out", default="out/matrix", help="output folder (default out/matrix)")
+    m.add_argument("--out", default=None,
+                   help="output folder (default out/matrix; out/parity with --parity)")
+    m.add_argument("--parity", action="store_true",
+                   help="the Principled-parity check instead: metallic spheres, Smith G, "
+                        "Lambert, reference IBL, Sun off, against Principled's single-scatter "
+                        "GGX, for each of --parity-hdris (or --hdri)")
+    m.add_argument("--parity-hdris", default=",".join(PARITY_HDRIS),
+                   help="Blender's bundled HDRIs for --parity (default: %(default)s)")
     add_scene_arguments(m)
     m.set_defaults(func=cmd_matrix)
     return parser
@@ -293,6 +411,7 @@ def main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:                   # argparse already printed one line
         return EXIT_BAD_INPUT if exc.code else 0
+    fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
     try:
         args.func(args)
     except UserError as exc:

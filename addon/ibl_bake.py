@@ -44,7 +44,7 @@ from .hdri import file_hash, load_hdri, write_float_exr
 from .params import G_MODELS, MIN_ALPHA
 from .paths import atomic_folder, cache_dir
 
-VERSION = 2
+VERSION = 3
 LEVEL_COUNT = 7
 LEVEL_ROUGHNESS = tuple(m / (LEVEL_COUNT - 1) for m in range(LEVEL_COUNT))
 # Width of each pre-filtered level (0: the source's own); the lobe's half-width spans >= 3 texels.
@@ -147,7 +147,9 @@ def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) ->
     sum_l K(r.l) dw_l when ``normalize``. Output on the same grid.
 
     For rows at elevations e, e' and longitude difference dphi,
-    q = (1 - r.l)/2 = sin^2((e - e')/2) + cos e cos e' sin^2(dphi/2) (no cancellation)."""
+    q = (1 - r.l)/2 = sin^2((e - e')/2) + cos e cos e' sin^2(dphi/2) (no cancellation).
+    A normalised convolution with a kernel >= 0 cannot leave [min(src), max(src)]: the FFT's
+    round-off (which put -1e-13 beside a 10^6 texel) is clipped to that range."""
     h, w, _ = src.shape
     elev = row_elevations(h)
     dw = row_solid_angles(h, w)
@@ -168,6 +170,8 @@ def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) ->
             total = (k_hat[:, :, 0].real * dw[None, :]).sum(axis=1)               # (c,)
             res = res / np.maximum(total, 1e-30)[:, None, None]
         out[rows] = res
+    if normalize:
+        np.clip(out, min(float(src.min()), 0.0), float(src.max()), out=out)
     return out
 
 
@@ -272,11 +276,13 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
     if not hdri_path.is_file():
         load_hdri(hdri_path)                    # raises the standard "not found" message
     source_hash = file_hash(hdri_path)
-    folder = cache_dir() / f"ibl-v{VERSION}-{_params_key()}-{source_hash}"
+    name = f"ibl-v{VERSION}-{_params_key()}-{source_hash}"
+    folder = cache_dir(create=False) / name
     if (folder / INFO_FILE).is_file():
         _report(progress, 1.0, f"cached: {folder}")
         return folder
-    pixels, repaired = read_hdri(hdri_path, repair=True)
+    pixels, repaired = read_hdri(hdri_path, repair=True)      # validates before any write
+    folder = cache_dir() / name
     if repaired and warn is not None:
         warn(f"{hdri_path} holds {repaired} NaN/Inf pixel(s); they were set to 0 for the bake")
     dfg = {}

@@ -119,13 +119,11 @@ def script_node(mat: bpy.types.Material) -> bpy.types.ShaderNodeScript:
 
 
 def set_options(mat: bpy.types.Material, options: ModelOptions) -> None:
+    from . import model_node
     node = script_node(mat)
     sock = lambda ident: osl_shader.socket(node, ident)  # noqa: E731
-    sock("view").default_value = options.view
-    sock("g_model").default_value = options.g_model
-    sock("diffuse_model").default_value = options.diffuse_model
-    sock("units").default_value = options.units
-    sock("ibl").default_value = options.ibl
+    for key in model_node.OPTIONS:
+        model_node.set_option(node, key, getattr(options, key))
     sock("env_samples").default_value = options.env_samples
     sock("env_visibility").default_value = options.env_visibility
     sock("sun_shadow").default_value = options.sun_shadow
@@ -183,14 +181,11 @@ def group_node(mat: bpy.types.Material) -> bpy.types.ShaderNodeGroup:
 
 
 def set_group_options(node: bpy.types.ShaderNodeGroup, options: ModelOptions) -> None:
+    from . import model_node
     from .node_group import require_baked_ibl
-    from .params import VIEWS
     require_baked_ibl(options.ibl)
-    node.inputs["View"].default_value = VIEWS.index(options.view)
-    node.inputs["G Smith"].default_value = int(options.g_model == "smith_ggx_correlated")
-    node.inputs["Diffuse Lambert"].default_value = int(options.diffuse_model == "lambert")
-    node.inputs["Units Unity"].default_value = int(options.units == "unity")
-    node.inputs["IBL Unity"].default_value = int(options.ibl == "unity")
+    for key in model_node.OPTIONS:
+        model_node.set_option(node, key, getattr(options, key))
 
 
 def set_group_lighting(node: bpy.types.ShaderNodeGroup, lighting: Lighting) -> None:

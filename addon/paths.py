@@ -10,12 +10,13 @@ PACKAGE_ROOT = Path(__file__).resolve().parent.parent     # the extension / repo
 OSL_DIR = PACKAGE_ROOT / "osl"
 
 
-def cache_dir() -> Path:
+def cache_dir(create: bool = True) -> Path:
     """A writable cache folder (never the add-on's install folder, which may be read-only).
 
     Order: $CTLAB_CACHE; the preferences' cache folder; the extension's user folder when
     running as an installed extension; $XDG_CACHE_HOME/cook-torrance-lab;
-    ~/.cache/cook-torrance-lab.
+    ~/.cache/cook-torrance-lab. With ``create`` False the folder is only named (a lookup
+    that must not leave an empty folder behind).
     """
     from . import preferences
     env = os.environ.get("CTLAB_CACHE") or preferences.get().cache_folder
@@ -27,10 +28,12 @@ def cache_dir() -> Path:
         package = __package__.rpartition(".")[0] if __package__ else ""
         if package.startswith("bl_ext."):
             import bpy
-            path = Path(bpy.utils.extension_path_user(package, path="cache", create=True))
+            path = Path(bpy.utils.extension_path_user(package, path="cache", create=create))
         if path is None:
             base = os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache")
             path = Path(base) / "cook-torrance-lab"
+    if not create:
+        return path
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

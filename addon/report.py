@@ -78,11 +78,124 @@ same split-sum as the OSL shader from the same files, but cannot trace the Sun's
 differs where one sphere shadows another.</p>"""
 
 
-def write_report(out_dir: Path, comparisons, scene: dict, timings: dict) -> Path:
+ATTRIBUTION_NOTE = """<p>Each row switches one model choice toward Principled BSDF and shows
+the mean &Delta;E00 against Principled that is left; a drop is the share of the difference that
+choice explains. G: the seed's Cook-Torrance G against the height-correlated Smith G Principled
+uses. Diffuse: Disney against Lambert. Multiple scattering: the last step compares with
+Principled's single-scatter GGX instead of its default Multiscatter GGX, which adds back the
+energy single scattering loses on rough metals. What is left after all three is Principled's
+energy-conserving layering (its diffuse is weighted by what the specular layer does not
+reflect, where the model uses the fixed 1 - 0.04 of Unity), its dielectric Fresnel (IOR 1.5
+against Schlick at F0 = 0.04), and render noise.</p>"""
+
+FURNACE_NOTE = """<p>White furnace: a uniform world of radiance 1, the Sun off, metallic 1 and
+albedo 1 (so F = 1): the indirect_specular view is the specular directional albedo, which
+energy conservation bounds by 1. Single-scattering microfacet BRDFs lose energy at high
+roughness (light that would scatter again between microfacets is dropped). Smith's G loses
+more than the Cook-Torrance (V-cavity) G, min(1, 2(n.h)(n.v)/(v.h), 2(n.h)(n.l)/(v.h)), whose
+masking is weaker at grazing views (Heitz 2014, section 5): with this model's GGX D the
+Cook-Torrance G keeps more energy on rough surfaces, most at grazing views, and both stay
+below 1 (brute-force quadrature of the SPEC formulas agrees; tests/test_energy.py). Solid:
+the first G; dashed: the second. Curves are measured from the renders (pixels binned by
+view angle, n.v from each pixel's place on the sphere).</p>"""
+
+
+def attribution_table(steps) -> str:
+    """``steps``: (label, metrics) in switch order, the first the seed model. Per cell, the
+    mean CIEDE2000 left after each switch, and the overall means."""
+    cells = steps[0][1]["cells"]
+    head = ("<tr><th>metallic</th><th>smoothness</th>" +
+            "".join(f"<th>{html.escape(label)}</th>" for label, _ in steps) + "</tr>")
+    rows = []
+    for i, c in enumerate(cells):
+        values = [m["cells"][i]["ciede2000_mean"] for _, m in steps]
+        rows.append(f"<tr><td>{c['metallic']:.2f}</td><td>{c['smoothness']:.2f}</td>" +
+                    "".join(f"<td>{v:.2f}" + (f" ({v - values[k - 1]:+.2f})" if k else "") +
+                            "</td>" for k, v in enumerate(values)) + "</tr>")
+    overall = [m["overall"]["ciede2000_mean"] for _, m in steps]
+    rows.append("<tr class='all'><td colspan=2>all cells</td>" +
+                "".join(f"<td>{v:.2f}" + (f" ({v - overall[k - 1]:+.2f})" if k else "") +
+                        "</td>" for k, v in enumerate(overall)) + "</tr>")
+    return f"<table>{head}{''.join(rows)}</table>"
+
+
+def furnace_section(furnace: dict) -> str:
+    from .energy import mean_albedo, svg_plot
+    head = "<tr><th>smoothness</th>" + "".join(
+        f"<th>{html.escape(g)} G: mean</th><th>max</th>" for g in furnace) + "</tr>"
+    rows = []
+    curves = list(furnace.values())
+    for i, c in enumerate(curves[0]):
+        cells = "".join(
+            f"<td>{mean_albedo(cs[i]):.3f}</td>"
+            f"<td>{max(x for x in cs[i]['albedo'] if x is not None):.3f}</td>" for cs in curves)
+        rows.append(f"<tr><td>{c['smoothness']:.2f}</td>{cells}</tr>")
+    return (f"<h2>Energy: white furnace</h2>{FURNACE_NOTE}{svg_plot(furnace)}"
+            f"<table>{head}{''.join(rows)}</table>")
+
+
+STYLE = """<style>
+body { font-family: system-ui, sans-serif; margin: 2em; color: #222; }
+.row { display: flex; gap: 1em; flex-wrap: wrap; }
+figure { margin: 0; } figure img { width: 100%; max-width: 512px; image-rendering: pixelated; }
+figcaption { text-align: center; font-weight: 600; }
+table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
+td, th { border: 1px solid #ccc; padding: 2px 8px; text-align: right; }
+tr.all td { font-weight: 600; } pre { background: #f4f4f4; padding: 1em; }
+</style>"""
+
+
+def _write(out_dir: Path, page: str) -> Path:
+    """report.html, whole or not at all."""
+    path = Path(out_dir) / "report.html"
+    tmp = path.with_name("report.html.partial")
+    tmp.write_text(page, encoding="utf-8")
+    tmp.replace(path)
+    return path
+
+
+PARITY_NOTE = """<p>With G = height-correlated Smith, Lambert diffuse, metallic 1 (so the
+diffuse term is zero and F is Schlick on the albedo), the Sun off and no sphere shadowing
+another, the model's BRDF is the one Principled BSDF uses for a metal with its single-scatter
+GGX distribution (its F82 tint is Schlick when Specular Tint is white). Our reference
+integration (importance-sampled environment and BRDF, MIS) and Cycles' path tracer then
+estimate the same integral: what differs is noise.</p>"""
+
+
+def write_parity_report(out_dir: Path, entries, bound: float) -> Path:
+    """``entries``: (HDRI name, metrics, scene) per HDRI; folders <name>/cook_torrance,
+    <name>/principled, <name>/compare."""
+    sections = []
+    for name, metrics, scene in entries:
+        worst = max(c["ciede2000_mean"] for c in metrics["cells"])
+        verdict = "holds" if worst <= bound else "FAILS"
+        sections.append(
+            f"<h2>{html.escape(name)}: parity {verdict} (worst sphere {worst:.2f}, bound "
+            f"{bound:g})</h2>"
+            + _figures(f"{name}/cook_torrance", f"{name}/principled", f"{name}/compare",
+                       "Cook-Torrance (Smith, Lambert, reference IBL)",
+                       "Principled BSDF (GGX)", metrics)
+            + f"<p>{_summary(metrics)} {scene.get('samples', '?')} samples per pixel.</p>"
+            + f"<h3>Mean &Delta;E00 per sphere</h3>{_grid(metrics, 'ciede2000_mean', '.2f')}"
+            + f"<h3>Relative luminance error per sphere</h3>"
+            + _grid(metrics, 'rel_luminance_error', '+.1%'))
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: Principled parity</title>
+{STYLE}</head><body>
+<h1>Cook-Torrance Lab: Principled parity</h1>{PARITY_NOTE}{''.join(sections)}
+</body></html>
+"""
+    return _write(out_dir, page)
+
+
+def write_report(out_dir: Path, comparisons, scene: dict, timings: dict, attribution=None,
+                 furnace=None) -> Path:
     """Write report.html into out_dir (whole or not at all); image paths are relative.
 
     ``comparisons``: (render folder, reference folder, comparison folder, render label,
-    reference label, metrics) tuples; the first is the model against Principled BSDF."""
+    reference label, metrics) tuples; the first is the model against Principled BSDF.
+    ``attribution``: (switch label, metrics against Principled) in switch order;
+    ``furnace``: {G model: energy.directional_albedo curves}."""
     params = {k: scene[k] for k in ("rows", "cols", "width", "height", "samples", "hdri",
                                     "hdri_strength", "hdri_rotation_deg", "sun", "model",
                                     "principled_distribution", "blender") if k in scene}
@@ -101,15 +214,7 @@ def write_report(out_dir: Path, comparisons, scene: dict, timings: dict) -> Path
                            f"reference)</h4>{_grid(m, 'rel_luminance_error', '+.1%')}")
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: sphere matrix report</title>
-<style>
-body {{ font-family: system-ui, sans-serif; margin: 2em; color: #222; }}
-.row {{ display: flex; gap: 1em; flex-wrap: wrap; }}
-figure {{ margin: 0; }} figure img {{ width: 100%; max-width: 512px; image-rendering: pixelated; }}
-figcaption {{ text-align: center; font-weight: 600; }}
-table {{ border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }}
-td, th {{ border: 1px solid #ccc; padding: 2px 8px; text-align: right; }}
-tr.all td {{ font-weight: 600; }} pre {{ background: #f4f4f4; padding: 1em; }}
-</style></head><body>
+{STYLE}</head><body>
 <h1>Cook-Torrance Lab: sphere matrix</h1>
 <p>Columns: metallic 0 &rarr; 1 (left to right). Rows: smoothness 1 &rarr; 0 (top to bottom).
 All renders use the same world HDRI and Sun; the Cook-Torrance renders are the OSL shader
@@ -126,12 +231,11 @@ energy-conserving layering.</p>
 compare the displayed colours (render.png, AgX view transform); the relative luminance error
 compares the mean Rec. 709 luminance of the raw values. Cells use the pixels within 95% of
 each sphere's radius.</p>
+{"<h2>Attribution: what explains the difference from Principled</h2>" + ATTRIBUTION_NOTE +
+ attribution_table(attribution) if attribution else ""}
+{furnace_section(furnace) if furnace else ""}
 {study_html}
 <h2>Parameters</h2><pre>{html.escape(json.dumps(params, indent=2))}</pre>
 </body></html>
 """
-    path = Path(out_dir) / "report.html"
-    tmp = path.with_name("report.html.partial")
-    tmp.write_text(page, encoding="utf-8")
-    tmp.replace(path)
-    return path
+    return _write(out_dir, page)

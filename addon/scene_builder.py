@@ -49,6 +49,15 @@ class MatrixSettings:
     width: int = 512
     height: int = 512
     model: ModelOptions = field(default_factory=ModelOptions)
+    metallic: float | None = None       # every sphere's metallic (None: 0 -> 1 by column)
+    # Spheres shadow each other (the Sun's and, in a path tracer, the world's light); off,
+    # each sphere is lit by the unoccluded world, as the model's integrator assumes.
+    mutual_shadows: bool = True
+
+    def cells(self):
+        """(row, col, metallic, smoothness) of every sphere."""
+        for row, col, metal, smooth in matrix_values(self.rows, self.cols):
+            yield row, col, (metal if self.metallic is None else self.metallic), smooth
 
     def hdri_path(self) -> Path:
         return Path(self.hdri) if self.hdri else bundled_hdri("forest")
@@ -79,6 +88,8 @@ class MatrixSettings:
             if not math.isfinite(value) or (name != "hdri_rotation" and value < 0):
                 raise UserError(f"{name.replace('_', ' ')} {value} out of range; use a finite "
                                 + ("number" if name == "hdri_rotation" else "value >= 0"))
+        if self.metallic is not None and not 0.0 <= self.metallic <= 1.0:
+            raise UserError(f"metallic {self.metallic} out of range; use 0 to 1")
         if len(self.albedo) != 3 or not all(0.0 <= a <= 1.0 for a in self.albedo):
             raise UserError(f"albedo {self.albedo} out of range; use three values in [0, 1]")
         self.model.validate()
@@ -232,7 +243,7 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
     mesh = bpy.data.meshes.new("Cook-Torrance Lab Sphere")
     _sphere_mesh(mesh, s.radius)
     mesh.materials.append(mat)
-    for row, col, metal, smooth in matrix_values(s.rows, s.cols):
+    for row, col, metal, smooth in s.cells():
         obj = _tagged(bpy.data.objects.new(f"CT Sphere r{row} c{col}", mesh))
         obj.location = cell_center(s, row, col)
         obj[materials.PROP_ALBEDO] = list(s.albedo)
@@ -242,6 +253,7 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
         # Spheres do not see each other: each is lit by the world and the Sun alone, as the
         # model's integrator assumes (shadows from the Sun are kept in both renders).
         obj.visible_diffuse = obj.visible_glossy = obj.visible_transmission = False
+        obj.visible_shadow = s.mutual_shadows
         coll.objects.link(obj)
     return describe(s)
 
@@ -259,7 +271,7 @@ def _sphere_mesh(mesh: bpy.types.Mesh, radius: float, segments=96, rings=48) -> 
 def describe(s: MatrixSettings) -> dict:
     """The scene as data for scene.json: image size, directions, and each cell in pixels."""
     cells = []
-    for row, col, metal, smooth in matrix_values(s.rows, s.cols):
+    for row, col, metal, smooth in s.cells():
         (cx, cy), px_per_m = world_to_pixel(s, cell_center(s, row, col))
         cells.append({"row": row, "col": col, "metallic": metal, "smoothness": smooth,
                       "albedo": list(s.albedo), "center_px": [cx, cy],

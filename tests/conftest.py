@@ -49,9 +49,41 @@ def sphere_pixels(scene, cell, margin_px=1.0):
                              cell, 1.0 - margin_px / cell["radius_px"])
 
 
+@pytest.fixture
+def addon():
+    """The add-on registered in a factory-startup scene (the default cube, light, camera)."""
+    from addon import register
+    bpy.ops.wm.read_factory_settings(use_empty=False)
+    register.register()
+    yield
+    register.unregister()
+
+
 @pytest.fixture(scope="session")
 def uniform_hdri(tmp_path_factory):
     """A uniform white world of radiance 1 (64x32 float EXR)."""
     path = tmp_path_factory.mktemp("hdri") / "white.exr"
     write_float_exr(path, np.ones((32, 64, 3), dtype=np.float32))
     return str(path)
+
+
+def bad_images(tmp_path):
+    """Bad HDRIs, keyed by the words their error message must contain."""
+    from addon.hdri import oiio
+    OIIO = oiio()
+    png = tmp_path / "ldr.png"
+    buf = OIIO.ImageBuf(OIIO.ImageSpec(64, 32, 3, OIIO.UINT8))
+    buf.write(str(png))
+    mono = tmp_path / "mono.exr"
+    write_float_exr(mono, np.ones((32, 64, 1), dtype=np.float32))
+    square = tmp_path / "square.exr"
+    write_float_exr(square, np.ones((32, 32, 3), dtype=np.float32))
+    good = tmp_path / "good.exr"
+    write_float_exr(good, np.ones((256, 512, 3), dtype=np.float32) * np.linspace(0, 1, 512)[None, :, None])
+    corrupt = tmp_path / "corrupt.exr"
+    corrupt.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    garbage = tmp_path / "garbage.exr"
+    garbage.write_bytes(b"not an image at all" * 100)
+    return {"not floating point": png, "1 channel": mono, "not 2:1": square,
+            "corrupt or truncated": corrupt, "HDRI unreadable": garbage,
+            "HDRI not found": tmp_path / "missing.exr"}

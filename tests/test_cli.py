@@ -45,7 +45,7 @@ def test_matrix_main_job_writes_a_report(tmp_path):
     out = tmp_path / "m"
     p = run("matrix", "--out", out, "--grid", "2x2", "--size", "48", "--samples", "4")
     assert p.returncode == 0, p.stderr + p.stdout
-    assert "[1/7]" in p.stdout and "[7/7]" in p.stdout
+    assert "[1/12]" in p.stdout and "[12/12]" in p.stdout
     for f in ("report.html", "cook_torrance/render.png", "principled/render.png",
               "compare/diff.png", "compare/metrics.json"):
         assert (out / f).is_file(), f
@@ -59,50 +59,35 @@ def test_matrix_main_job_writes_a_report(tmp_path):
         assert f"{study}/render.png" in html and f"compare_{study}/diff.png" in html
         cells = json.loads((out / f"compare_{study}" / "metrics.json").read_text())["cells"]
         assert all(np.isfinite(c["rel_luminance_error"]) for c in cells)
+    # the attribution: the error against Principled after each switch, per cell
+    for cmp_dir in ("compare_attr_smith", "compare_attr_smith_lambert", "compare_attr_ggx"):
+        assert len(json.loads((out / cmp_dir / "metrics.json").read_text())["cells"]) == 4
+    assert "Attribution" in html and "G: Cook-Torrance to Smith" in html
+    # the white furnace: two renders and their plot
+    assert "Energy: white furnace" in html and html.count("<polyline") == 12
     assert not list(out.rglob("*partial*"))
 
 
-def _non_float_image(tmp_path):
-    import bpy  # noqa: F401
-    from addon.compare import write_png
-    path = tmp_path / "ldr.png"
-    write_png(path, np.zeros((16, 32, 3)))
-    return path
-
-
-BAD = {
-    "missing hdri": (["--hdri", "/nonexistent/sky.exr"], "HDRI not found"),
-    "non-float hdri": (["--hdri", "@LDR"], "not floating point"),
-    "malformed vector": (["--sun-dir", "1,2"], "malformed sun direction"),
-    "unknown view": (["--view", "Q"], "unknown view"),
-    "grid out of range": (["--grid", "40x2"], "grid 40x2 out of range"),
-    "size out of range": (["--size", "5"], "image size 5 out of range"),
-    "unwritable output": (["--out", "@FILE/sub"], "output folder not writable"),
-    "bad samples": (["--samples", "0"], "samples 0 out of range"),
-    "unknown ibl": (["--ibl", "probe"], "unknown IBL 'probe'"),
-    "eevee with osl": (["--engine", "eevee"], "--engine eevee renders the node group only"),
-}
-
-
-@pytest.mark.parametrize("case", list(BAD))
-def test_bad_input_one_line_exit_2_nothing_written(tmp_path, case):
-    extra, message = BAD[case]
-    blocker = tmp_path / "a-file"
-    blocker.write_text("x")
-    extra = [str(_non_float_image(tmp_path)) if a == "@LDR" else
-             a.replace("@FILE", str(blocker)) for a in extra]
-    out = tmp_path / "out"
-    args = ["render", "--shader", "osl", "--size", "32", "--grid", "1x1"]
-    if "--out" not in extra:
-        args += ["--out", out]
-    p = run(*args, *extra)
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and message in lines[0], p.stderr
-    assert not out.exists()
-
-
-def test_compare_rejects_a_folder_without_a_render(tmp_path):
-    p = run("compare", tmp_path, tmp_path, "--out", tmp_path / "c")
-    assert p.returncode == 2 and "not a render folder" in p.stderr
-    assert not (tmp_path / "c").exists()
+def test_parity_renders_metals_against_principled_ggx_for_two_hdris(tmp_path):
+    """matrix --parity: Smith, Lambert, metallic 1, Sun off, against single-scatter GGX. At
+    few samples and pixels the colours are noisy and a mirror's mean luminance hangs on a few
+    pixels (measured +-5% to 10% at 16 spp), but on the rough spheres it must agree within
+    3% (measured within 1.3%): a wrong mapping, unit, G or Fresnel moves it by far more. The
+    per-sphere CIEDE2000 bound is met at the default 256 spp (README)."""
+    out = tmp_path / "p"
+    p = run("matrix", "--parity", "--out", out, "--grid", "3x1", "--size", "72",
+            "--samples", "16", "--parity-hdris", "forest,studio")
+    assert p.returncode == 0, p.stderr + p.stdout
+    html = (out / "report.html").read_text()
+    for hdri in ("forest", "studio"):
+        scene = json.loads((out / hdri / "cook_torrance" / "scene.json").read_text())
+        assert scene["model"]["g_model"] == "smith_ggx_correlated"
+        assert scene["model"]["diffuse_model"] == "lambert"
+        assert scene["sun"]["irradiance"] == [0.0, 0.0, 0.0]
+        assert all(c["metallic"] == 1.0 for c in scene["cells"])
+        assert json.loads((out / hdri / "principled" / "scene.json").read_text())[
+            "principled_distribution"] == "GGX"
+        cells = json.loads((out / hdri / "compare" / "metrics.json").read_text())["cells"]
+        assert all(abs(c["rel_luminance_error"]) < 0.03 for c in cells
+                   if c["smoothness"] <= 0.5), cells
+        assert f"{hdri}/compare/diff.png" in html

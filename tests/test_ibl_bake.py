@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, bad_images
 from reference_model import specular_albedo
 from addon import ibl_bake
 from addon.compare import read_image
@@ -177,30 +177,9 @@ def _run_bake(hdri, out, cache):
                           text=True, env=env, timeout=300)
 
 
-def _bad_images(tmp_path):
-    from addon.hdri import oiio
-    OIIO = oiio()
-    png = tmp_path / "ldr.png"
-    buf = OIIO.ImageBuf(OIIO.ImageSpec(64, 32, 3, OIIO.UINT8))
-    buf.write(str(png))
-    mono = tmp_path / "mono.exr"
-    write_float_exr(mono, np.ones((32, 64, 1), dtype=np.float32))
-    square = tmp_path / "square.exr"
-    write_float_exr(square, np.ones((32, 32, 3), dtype=np.float32))
-    good = tmp_path / "good.exr"
-    write_float_exr(good, np.ones((256, 512, 3), dtype=np.float32) * np.linspace(0, 1, 512)[None, :, None])
-    corrupt = tmp_path / "corrupt.exr"
-    corrupt.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
-    garbage = tmp_path / "garbage.exr"
-    garbage.write_bytes(b"not an image at all" * 100)
-    return {"not floating point": png, "1 channel": mono, "not 2:1": square,
-            "corrupt or truncated": corrupt, "HDRI unreadable": garbage,
-            "HDRI not found": tmp_path / "missing.exr"}
-
-
 def test_bake_rejects_bad_images_with_a_clear_message_and_writes_nothing(tmp_path):
     cache = tmp_path / "cache"
-    for expected, path in _bad_images(tmp_path).items():
+    for expected, path in bad_images(tmp_path).items():
         out = tmp_path / f"out-{path.stem}"
         p = _run_bake(path, out, cache)
         assert p.returncode == 2, (expected, p.stdout, p.stderr)

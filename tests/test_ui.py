@@ -113,14 +113,6 @@ def _registered_state():
     }
 
 
-@pytest.fixture
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=False)
-    register.register()
-    yield
-    register.unregister()
-
-
 def _sun(scene, energy=3.0, rotation=(0.6, 0.2, 0.8)):
     data = bpy.data.lights.new("Key", 'SUN')
     data.energy = energy

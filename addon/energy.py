@@ -1,0 +1,130 @@
+"""The white furnace: how much energy the shipped shader's specular term keeps.
+
+A uniform world of radiance 1, the Sun off, metallic 1 and albedo 1 (so specColor = 1 and
+Schlick's F = 1 exactly): the indirect_specular view of a pixel is then the specular
+directional albedo E(v) = integral of D G / (4 (n.l)(n.v)) (n.l) dl, which energy conservation
+bounds by 1 (Heitz 2014, "Understanding the Masking-Shadowing Function", section 2). On an
+orthographic sphere a pixel at distance d from the centre of a sphere of radius R sees
+n.v = sqrt(1 - (d/R)^2), so one render gives E against the view angle for every roughness.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .params import ModelOptions
+
+ROWS = 6                          # smoothness 1, 0.8, ... 0
+BINS = 9                          # view-angle bins of 10 degrees
+WIDTH, HEIGHT = 64, 64 * ROWS
+
+
+def white_world() -> Path:
+    """A uniform world of radiance 1 (kept in the cache)."""
+    from .hdri import write_float_exr
+    from .paths import cache_dir
+    path = cache_dir() / "white-furnace.exr"
+    if not path.is_file():
+        write_float_exr(path, np.ones((32, 64, 3), dtype=np.float32))
+    return path
+
+
+def furnace_settings(g_model: str, env_samples: int = 4, seed: int = 0):
+    from .scene_builder import MatrixSettings
+    return MatrixSettings(rows=ROWS, cols=1, width=WIDTH, height=HEIGHT, hdri=str(white_world()),
+                          sun_strength=0.0, metallic=1.0, albedo=(1.0, 1.0, 1.0),
+                          mutual_shadows=False, shader="osl",
+                          model=ModelOptions(view="indirect_specular", g_model=g_model,
+                                             ibl="reference", env_samples=env_samples, seed=seed))
+
+
+def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list:
+    """Per sphere: the mean rendered value in view-angle bins (theta_v in [0, 90) degrees),
+    with n.v from the pixel's distance to the sphere's centre; pixels within a pixel of the
+    silhouette are left out (partly covered)."""
+    value = image[..., :3].mean(axis=-1)
+    h, w = value.shape
+    yy, xx = np.mgrid[0:h, 0:w] + 0.5
+    curves = []
+    for cell in scene["cells"]:
+        cx, cy = cell["center_px"]
+        radius = cell["radius_px"]
+        d = np.hypot(xx - cx, yy - cy)
+        inside = d < radius - 1.0
+        theta = np.degrees(np.arcsin(np.clip(d[inside] / radius, 0.0, 1.0)))
+        index = np.minimum((theta / (90.0 / bins)).astype(int), bins - 1)
+        sums = np.bincount(index, value[inside], bins)
+        counts = np.bincount(index, None, bins)
+        mean = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+        centres = (np.arange(bins) + 0.5) * 90.0 / bins
+        curves.append({"smoothness": cell["smoothness"], "theta_deg": centres.tolist(),
+                       "albedo": [None if math.isnan(x) else float(x) for x in mean],
+                       "pixels": counts.astype(int).tolist()})
+    return curves
+
+
+_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d")
+
+
+def svg_plot(curves_by_g: dict, width: int = 560, height: int = 320) -> str:
+    """Directional albedo against the view angle: one colour per smoothness, solid for the
+    first G model, dashed for the second. A standalone <svg>."""
+    left, right, top, bottom = 48, 150, 12, 36
+    pw, ph = width - left - right, height - top - bottom
+    y_max = 1.1
+
+    def xy(theta, e):
+        return left + pw * theta / 90.0, top + ph * (1 - e / y_max)
+    parts = [f"<svg xmlns='http://www.w3.org/2000/svg' width='{width}' height='{height}' "
+             "font-family='sans-serif' font-size='11'>",
+             f"<rect x='{left}' y='{top}' width='{pw}' height='{ph}' fill='none' stroke='#888'/>"]
+    for e in (0.0, 0.25, 0.5, 0.75, 1.0):
+        x0, y0 = xy(0, e)
+        parts.append(f"<line x1='{x0}' y1='{y0}' x2='{x0 + pw}' y2='{y0}' stroke='#ddd'/>"
+                     f"<text x='{left - 6}' y='{y0 + 4}' text-anchor='end'>{e:g}</text>")
+    for t in range(0, 91, 15):
+        x0, y0 = xy(t, 0)
+        parts.append(f"<text x='{x0}' y='{y0 + 16}' text-anchor='middle'>{t}</text>")
+    parts.append(f"<text x='{left + pw / 2}' y='{height - 4}' text-anchor='middle'>"
+                 "view angle from the normal (degrees)</text>")
+    parts.append(f"<text x='12' y='{top + ph / 2}' transform='rotate(-90 12 {top + ph / 2})' "
+                 "text-anchor='middle'>directional albedo</text>")
+    legend_y = top + 10
+    for k, (g_model, curves) in enumerate(curves_by_g.items()):
+        dash = "" if k == 0 else " stroke-dasharray='5 3'"
+        for i, curve in enumerate(curves):
+            colour = _COLOURS[i % len(_COLOURS)]
+            points = " ".join("%.1f,%.1f" % xy(t, e) for t, e in
+                              zip(curve["theta_deg"], curve["albedo"]) if e is not None)
+            parts.append(f"<polyline points='{points}' fill='none' stroke='{colour}' "
+                         f"stroke-width='1.6'{dash}/>")
+            if k == 0:
+                parts.append(f"<line x1='{left + pw + 10}' y1='{legend_y}' x2='{left + pw + 30}' "
+                             f"y2='{legend_y}' stroke='{colour}' stroke-width='2'/>"
+                             f"<text x='{left + pw + 36}' y='{legend_y + 4}'>smoothness "
+                             f"{curve['smoothness']:.1f}</text>")
+                legend_y += 15
+    for k, g_model in enumerate(curves_by_g):
+        dash = "" if k == 0 else " stroke-dasharray='5 3'"
+        parts.append(f"<line x1='{left + pw + 10}' y1='{legend_y + 6}' x2='{left + pw + 30}' "
+                     f"y2='{legend_y + 6}' stroke='#333'{dash}/><text x='{left + pw + 36}' "
+                     f"y='{legend_y + 10}'>G {html.escape(g_model)}</text>")
+        legend_y += 15
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def mean_albedo(curve: dict) -> float:
+    """The curve's average over view angles, weighted by solid angle of view directions
+    (sin theta cos theta, the cosine-weighted hemispherical average)."""
+    t = np.radians(np.array(curve["theta_deg"]))
+    e = np.array([np.nan if x is None else x for x in curve["albedo"]], dtype=float)
+    w = np.sin(t) * np.cos(t)
+    ok = np.isfinite(e)
+    return float(np.sum(e[ok] * w[ok]) / np.sum(w[ok]))
+
+

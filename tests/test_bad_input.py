@@ -1,0 +1,141 @@
+"""docs/bad-input.md, case by case: each bad input gets its message, exit status 2 (or an
+ERROR report from the operator) and writes nothing. The command line runs in-process
+(cli.main, what scripts/ctlab.py exits with); one case runs as a real process too."""
+
+import re
+import types
+from pathlib import Path
+
+import bpy
+import pytest
+
+from addon import cli, operators
+from conftest import ROOT, bad_images
+
+# ID -> (argv, message). @BAD:<key> is a bad image from conftest.bad_images; @FILE a plain file.
+RENDER = ["render", "--shader", "osl", "--size", "32", "--grid", "1x1"]
+CLI_CASES = {
+    "hdri-missing": (RENDER + ["--hdri", "@BAD:HDRI not found"], "HDRI not found"),
+    "hdri-not-float": (RENDER + ["--hdri", "@BAD:not floating point"], "not floating point"),
+    "hdri-one-channel": (["bake", "@BAD:1 channel"], "1 channel(s)"),
+    "hdri-not-2-1": (RENDER + ["--hdri", "@BAD:not 2:1"], "not 2:1 equirectangular"),
+    "hdri-truncated": (["bake", "@BAD:corrupt or truncated"], "corrupt or truncated"),
+    "hdri-unreadable": (RENDER + ["--hdri", "@BAD:HDRI unreadable"], "HDRI unreadable"),
+    "grid-malformed": (RENDER[:-2] + ["--grid", "7by7"], "malformed grid '7by7'"),
+    "grid-range": (RENDER[:-2] + ["--grid", "40x2"], "grid 40x2 out of range"),
+    "size-range": (RENDER[:3] + ["--size", "5"], "image size 5 out of range"),
+    "samples-range": (RENDER + ["--samples", "0"], "samples 0 out of range"),
+    "env-samples-range": (RENDER + ["--env-samples", "0"], "env samples 0 out of range"),
+    "vector-malformed": (RENDER + ["--sun-dir", "1,2"], "malformed sun direction"),
+    "sun-zero": (RENDER + ["--sun-dir", "0,0,0"], "is not a non-zero 3-vector"),
+    "strength-negative": (RENDER + ["--sun-strength", "-1"], "sun strength -1.0 out of range"),
+    "albedo-range": (RENDER + ["--albedo", "2,0,0"], "albedo (2.0, 0.0, 0.0) out of range"),
+    "view-unknown": (RENDER + ["--view", "Q"], "unknown view 'Q'"),
+    "g-unknown": (RENDER + ["--g", "beckmann"], "unknown G 'beckmann'"),
+    "ibl-unknown": (RENDER + ["--ibl", "probe"], "unknown IBL 'probe'"),
+    "ibl-nodes-reference": (["render", "--shader", "nodes", "--ibl", "reference"],
+                            "the node group has no 'reference' indirect light"),
+    "shader-unknown": (["render", "--shader", "arnold"], "invalid choice: 'arnold'"),
+    "eevee-osl": (RENDER + ["--engine", "eevee"], "--engine eevee renders the node group only"),
+    "out-unwritable": (["render", "--shader", "osl", "--out", "@FILE/sub"],
+                       "output folder not writable"),
+    "cache-unusable": (["bake", "@FOREST"], "cache folder not usable"),
+    "compare-not-render": (["compare", "@EMPTY", "@EMPTY"], "is not a render folder"),
+    "parity-hdri-unknown": (["matrix", "--parity", "--parity-hdris", "moon"],
+                            "unknown bundled HDRI in --parity-hdris 'moon'"),
+}
+OPERATOR_CASES = ("op-matrix-hdri", "op-bake-hdri", "op-convert-not-principled",
+                  "op-convert-not-model", "op-convert-no-material", "op-comparison-running")
+
+
+def test_the_docs_table_and_these_tests_list_the_same_cases():
+    table = (ROOT / "docs" / "bad-input.md").read_text()
+    documented = set(re.findall(r"^\| `([a-z0-9-]+)` \|", table, re.M))
+    assert documented == set(CLI_CASES) | set(OPERATOR_CASES)
+
+
+def _argv(case, tmp_path):
+    images = bad_images(tmp_path)
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    (tmp_path / "empty").mkdir()
+    from addon.paths import bundled_hdri
+    subs = {"@FOREST": str(bundled_hdri("forest")), "@EMPTY": str(tmp_path / "empty")}
+    argv = []
+    for a in CLI_CASES[case][0]:
+        if a.startswith("@BAD:"):
+            a = str(images[a[5:]])
+        argv.append(subs.get(a, a.replace("@FILE", str(blocker))))
+    if argv[0] in ("render", "matrix") and "--out" not in argv:
+        argv += ["--out", str(tmp_path / "out")]
+    if argv[0] == "compare":
+        argv += ["--out", str(tmp_path / "out")]
+    return argv, blocker
+
+
+@pytest.mark.parametrize("case", list(CLI_CASES))
+def test_command_line_bad_input(case, tmp_path, capsys, monkeypatch):
+    argv, blocker = _argv(case, tmp_path)
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CTLAB_CACHE", str(blocker / "cache" if case == "cache-unusable" else cache))
+    inputs = {p for p in tmp_path.rglob("*")}
+    assert cli.main(argv) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err.strip().splitlines()
+    errors = [line for line in err if "error:" in line]
+    assert len(errors) == 1 and CLI_CASES[case][1] in errors[0], err
+    assert "Traceback" not in "\n".join(err)
+    written = {p for p in tmp_path.rglob("*")} - inputs
+    assert not written, written                       # no output folder, file or cache entry
+
+
+def test_exit_status_2_from_the_real_command(tmp_path):
+    import subprocess
+    import sys
+    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "ctlab.py"), "render", "--shader",
+                        "osl", "--out", str(tmp_path / "o"), "--hdri", str(tmp_path / "no.exr")],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and p.stderr.strip().startswith("ctlab: error: HDRI not found")
+    assert not (tmp_path / "o").exists()
+
+
+def _snapshot():
+    return (sorted(o.name for o in bpy.data.objects), sorted(m.name for m in bpy.data.materials),
+            sorted(w.name for w in bpy.data.worlds),
+            [(n.name, n.bl_idname) for n in bpy.data.materials["Material"].node_tree.nodes])
+
+
+@pytest.mark.parametrize("case", OPERATOR_CASES)
+def test_operator_bad_input(case, addon, tmp_path, monkeypatch):
+    cube = bpy.data.objects["Cube"]
+    bpy.context.view_layer.objects.active = cube
+    message = {"op-matrix-hdri": "HDRI not found: /nonexistent.exr",
+               "op-bake-hdri": "HDRI not found: /nonexistent.exr",
+               "op-convert-not-principled": "its surface is not a Principled BSDF",
+               "op-convert-not-model": "does not use the Cook-Torrance model",
+               "op-convert-no-material": "no material to convert",
+               "op-comparison-running": "a comparison is already running"}[case]
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CTLAB_CACHE", str(cache))
+    if case == "op-convert-not-principled":
+        nt = bpy.data.materials["Material"].node_tree
+        emission = nt.nodes.new("ShaderNodeEmission")
+        nt.links.new(emission.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    if case == "op-convert-no-material":
+        cube.data.materials.clear()
+        bpy.data.materials["Material"].use_fake_user = True
+    if case == "op-comparison-running":
+        monkeypatch.setitem(operators.JOBS, "comparison",
+                            types.SimpleNamespace(poll=lambda: "running", state="running"))
+    before = _snapshot()
+    call = {"op-matrix-hdri": lambda: bpy.ops.ctlab.build_sphere_matrix(hdri="/nonexistent.exr"),
+            "op-bake-hdri": lambda: bpy.ops.ctlab.bake_environment(filepath="/nonexistent.exr"),
+            "op-convert-not-principled": lambda: bpy.ops.ctlab.convert_to_cook_torrance(),
+            "op-convert-not-model": lambda: bpy.ops.ctlab.convert_to_principled(),
+            "op-convert-no-material": lambda: bpy.ops.ctlab.convert_to_cook_torrance(),
+            "op-comparison-running": lambda: bpy.ops.ctlab.render_comparison(
+                directory=str(tmp_path / "out"))}[case]
+    with pytest.raises(RuntimeError, match=re.escape(message)):
+        call()
+    assert _snapshot() == before                     # the scene and materials as they were
+    assert not cache.exists() or not any(cache.iterdir())
+    assert not (tmp_path / "out").exists()

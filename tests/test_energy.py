@@ -1,0 +1,68 @@
+"""The white furnace on the shipped OSL shader: the rendered specular directional albedo
+matches brute-force quadrature of the SPEC formulas (tests/reference_model.py) view angle by
+view angle, never exceeds 1, and the two G models differ as the quadrature says."""
+
+import numpy as np
+import pytest
+
+from addon import cli, energy
+from addon.compare import read_image
+from reference_model import specular_albedo
+
+
+def _expected_image(scene, g_model):
+    """Per pixel, the quadrature's E(n.v) (interpolated on a grid of n.v) at that pixel's n.v."""
+    img = np.zeros((scene["height"], scene["width"], 3), dtype=np.float32)
+    yy, xx = np.mgrid[0:scene["height"], 0:scene["width"]] + 0.5
+    mus = np.linspace(0.02, 1.0, 25)
+    for cell in scene["cells"]:
+        if cell["smoothness"] > 0.7:    # lobes narrower than the quadrature grid resolves
+            continue
+        table = [float(specular_albedo(mu, (1.0, 1.0, 1.0), 1.0, cell["smoothness"],
+                                       g_model=g_model, n_theta=300, n_phi=240)[0])
+                 for mu in mus]
+        cx, cy = cell["center_px"]
+        d = np.hypot(xx - cx, yy - cy) / cell["radius_px"]
+        inside = d < 1
+        img[inside] = np.interp(np.sqrt(1 - d[inside] ** 2), mus, table)[:, None]
+    return img
+
+
+@pytest.fixture(scope="module")
+def furnace(tmp_path_factory):
+    out = tmp_path_factory.mktemp("furnace")
+    curves, expected = {}, {}
+    for g in ("cook_torrance", "smith_ggx_correlated"):
+        scene = cli.render_one(energy.furnace_settings(g), out / g, 16, verbose=False)
+        curves[g] = energy.directional_albedo(read_image(out / g / "render.exr"), scene)
+        expected[g] = energy.directional_albedo(_expected_image(scene, g), scene)
+    return curves, expected
+
+
+def test_furnace_albedo_matches_quadrature_and_never_exceeds_one(furnace):
+    curves, expected = furnace
+    for g in curves:
+        for got, want in zip(curves[g], expected[g]):
+            for theta, e, x, n in zip(got["theta_deg"], got["albedo"], want["albedo"],
+                                      got["pixels"]):
+                if e is None:                 # no pixel at that view angle
+                    continue
+                assert e <= 1.0 + 0.01, (g, got["smoothness"], theta, e)
+                if n >= 40 and theta < 80 and got["smoothness"] < 0.7:
+                    assert abs(e - x) < 0.025, (g, got["smoothness"], theta, e, x)
+
+
+def test_cook_torrance_g_keeps_more_energy_than_smith_when_rough(furnace):
+    """Quadrature of the SPEC formulas: at high roughness the V-cavity (Cook-Torrance) G masks
+    less than Smith's, so it keeps more energy, most at grazing views; smooth, they agree."""
+    curves, _ = furnace
+    ct, smith = (curves[g] for g in ("cook_torrance", "smith_ggx_correlated"))
+    by_s = {round(c["smoothness"], 2): i for i, c in enumerate(ct)}
+    rough = by_s[0.0]
+    assert energy.mean_albedo(ct[rough]) > energy.mean_albedo(smith[rough]) + 0.08
+    assert ct[rough]["albedo"][7] > smith[rough]["albedo"][7] + 0.15        # 70-80 degrees
+    smooth = by_s[1.0]
+    assert abs(energy.mean_albedo(ct[smooth]) - energy.mean_albedo(smith[smooth])) < 0.01
+    # and single scattering loses energy with roughness, monotonically
+    means = [energy.mean_albedo(c) for c in smith]
+    assert means == sorted(means, reverse=True) and means[-1] < 0.5
