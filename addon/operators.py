@@ -508,7 +508,8 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
         context.window_manager.ctlab_job_state = "running"
         context.window_manager.ctlab_job_message = "starting"
         context.window_manager.ctlab_job_progress = 0.0
-        bpy.app.timers.register(_job_tick, first_interval=0.5)
+        if not bpy.app.timers.is_registered(_job_tick):     # one timer, however many jobs
+            bpy.app.timers.register(_job_tick, first_interval=0.5)
         self.report({'INFO'}, f"comparison started in the background -> {out}")
         return {'FINISHED'}
 
@@ -539,7 +540,9 @@ def stop_jobs() -> None:
     if job is not None and job.process.poll() is None:
         job.process.kill()
         job.process.wait()
-    if bpy.app.timers.is_registered(_job_tick):
+    # a timer left registered at exit hangs Blender's shutdown (measured: a second job
+    # registered a second timer and the process never exited)
+    while bpy.app.timers.is_registered(_job_tick):
         bpy.app.timers.unregister(_job_tick)
 
 
