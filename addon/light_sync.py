@@ -155,33 +155,67 @@ def environment_file(scene: bpy.types.Scene):
     return target
 
 
-def update_environment(node: bpy.types.Node, scene: bpy.types.Scene, hdri=None) -> None:
+class Environment:
+    """The scene's HDRI and what the materials derive from it, each resolved once however
+    many materials a sync pass updates: the file (validated), its importance tables and its
+    split-sum bake (both cached by content on disk, but each lookup hashes the file)."""
+
+    def __init__(self, scene: bpy.types.Scene):
+        self.scene = scene
+        self._hdri = self._tables = self._bake = None
+
+    @property
+    def hdri(self):
+        if self._hdri is None:
+            from .hdri import load_hdri
+            path = environment_file(self.scene)
+            load_hdri(path)                  # a clear error for a bad image, once
+            self._hdri = path
+        return self._hdri
+
+    @property
+    def tables(self) -> dict:
+        if self._tables is None:
+            from . import env_importance
+            self._tables = env_importance.tables_for(self.hdri)
+        return self._tables
+
+    @property
+    def bake(self):
+        if self._bake is None:
+            from . import ibl_bake
+            self._bake = ibl_bake.bake(self.hdri)
+        return self._bake
+
+
+def update_environment(node: bpy.types.Node, scene: bpy.types.Scene,
+                       env: Environment | None = None) -> None:
     """Point the model node at the scene's HDRI: its path and importance tables (OSL,
     reference IBL) or its baked split-sum files (baked IBL modes; the node group's textures).
-    Bakes on demand (cached by content): a bad HDRI raises UserError."""
-    from . import env_importance, ibl_bake, model_node, osl_shader
-    from .hdri import load_hdri
-    hdri = hdri or environment_file(scene)
+    Bakes on demand (cached by content): a bad HDRI raises UserError. Pass one ``env`` to
+    every node of a sync pass."""
+    from . import model_node, osl_shader
+    env = env or Environment(scene)
     ibl = model_node.get_option(node, "ibl")
     if model_node.implementation(node) == "osl":
         sock = lambda ident: osl_shader.socket(node, ident)  # noqa: E731
-        load_hdri(hdri)
-        sock("hdri").default_value = str(hdri)
+        sock("hdri").default_value = str(env.hdri)
         if ibl == "reference":
-            tables = env_importance.tables_for(hdri)
-            sock("env_marginal").default_value = tables["marginal"]
-            sock("env_conditional").default_value = tables["conditional"]
-            sock("env_pdf_table").default_value = tables["pdf"]
+            sock("env_marginal").default_value = env.tables["marginal"]
+            sock("env_conditional").default_value = env.tables["conditional"]
+            sock("env_pdf_table").default_value = env.tables["pdf"]
         else:
-            sock("ibl_bake").default_value = str(ibl_bake.bake(hdri))
+            sock("ibl_bake").default_value = str(env.bake)
     else:
         from .node_group import set_bake
-        set_bake(node.node_tree, ibl_bake.bake(hdri))
+        set_bake(node.node_tree, env.bake)
 
 
-def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=True) -> None:
+def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=True,
+                  env: Environment | None = None) -> None:
     """Drive a model material's key light from the key Sun and its HDRI inputs from the
-    world (replacing earlier drivers); with ``environment``, also point it at the HDRI."""
+    world (replacing earlier drivers); with ``environment``, also point it at the HDRI
+    (``env``: the sync pass's shared Environment)."""
     from . import model_node
     node = model_node.find(mat)
     if node is None:
@@ -193,7 +227,7 @@ def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=T
     if sun is None:                    # no Sun: no key light
         node.inputs["Sun Irradiance"].default_value = (0.0, 0.0, 0.0, 1.0)
     if environment:
-        update_environment(node, scene)
+        update_environment(node, scene, env)
 
 
 def _state(scene) -> tuple:
@@ -217,11 +251,12 @@ def on_depsgraph_update(scene, depsgraph=None) -> None:
         return
     _seen[scene.name] = state
     last_error.pop(scene.name, None)
+    env = Environment(scene)
     for mat, _node in list(model_node.model_materials()):
         if mat.get("ctlab_matrix"):          # the matrix builder manages its own material
             continue
         try:
-            sync_material(mat, scene)
+            sync_material(mat, scene, env=env)
         except UserError as exc:
             last_error[scene.name] = str(exc)
             print(f"Cook-Torrance Lab: {exc}")

@@ -404,10 +404,11 @@ class CTLAB_OT_sync_lighting(bpy.types.Operator):
 
     def execute(self, context):
         count = 0
+        env = light_sync.Environment(context.scene)
         try:
             for mat, _node in list(model_node.model_materials()):
                 if not mat.get("ctlab_matrix"):
-                    light_sync.sync_material(mat, context.scene)
+                    light_sync.sync_material(mat, context.scene, env=env)
                     count += 1
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
