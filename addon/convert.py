@@ -76,13 +76,6 @@ def _invert_link(tree, dst: bpy.types.NodeSocket, src: bpy.types.NodeSocket, lab
     tree.links.new(_one_minus(tree, source, location, label), dst)
 
 
-def _move(tree, src: bpy.types.NodeSocket, dst: bpy.types.NodeSocket) -> None:
-    if src.is_linked:
-        tree.links.new(src.links[0].from_socket, dst)
-    else:
-        dst.default_value = src.default_value
-
-
 def principled_to_model(mat: bpy.types.Material, scene: bpy.types.Scene, impl: str) -> list:
     """Replace the material's Principled BSDF by the Cook-Torrance node; returns notes on
     what could not be mapped. Raises UserError when the surface is not a Principled BSDF."""
@@ -107,8 +100,10 @@ def principled_to_model(mat: bpy.types.Material, scene: bpy.types.Scene, impl: s
         notes.append(f"distribution {bsdf.distribution}")
     node = model_node.new_node(tree, impl)
     node.location = bsdf.location
-    _move(tree, bsdf.inputs["Base Color"], model_node.surface_input(node, "albedo"))
-    _move(tree, bsdf.inputs["Metallic"], model_node.surface_input(node, "metallic"))
+    model_node.carry_input(tree, bsdf.inputs["Base Color"],
+                           model_node.surface_input(node, "albedo"))
+    model_node.carry_input(tree, bsdf.inputs["Metallic"],
+                           model_node.surface_input(node, "metallic"))
     rough, smooth = bsdf.inputs["Roughness"], model_node.surface_input(node, "smoothness")
     if rough.is_linked:
         _invert_link(tree, smooth, rough, "Smoothness = 1 - Roughness")
@@ -144,8 +139,10 @@ def model_to_principled(mat: bpy.types.Material) -> list:
     bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.location = node.location
     bsdf.distribution = 'MULTI_GGX'
-    _move(tree, model_node.surface_input(node, "albedo"), bsdf.inputs["Base Color"])
-    _move(tree, model_node.surface_input(node, "metallic"), bsdf.inputs["Metallic"])
+    model_node.carry_input(tree, model_node.surface_input(node, "albedo"),
+                           bsdf.inputs["Base Color"])
+    model_node.carry_input(tree, model_node.surface_input(node, "metallic"),
+                           bsdf.inputs["Metallic"])
     smooth = model_node.surface_input(node, "smoothness")
     if smooth.is_linked:
         _invert_link(tree, bsdf.inputs["Roughness"], smooth, "Roughness = 1 - Smoothness")

@@ -104,6 +104,15 @@ def set_option(node: bpy.types.Node, key: str, value: str) -> None:
         node.inputs[_GROUP_SWITCHES[key]].default_value = allowed.index(value)
 
 
+def carry_input(tree: bpy.types.NodeTree, src: bpy.types.NodeSocket,
+                dst: bpy.types.NodeSocket) -> None:
+    """Give ``dst`` what feeds ``src``: its link, else its value."""
+    if src.is_linked:
+        tree.links.new(src.links[0].from_socket, dst)
+    else:
+        dst.default_value = src.default_value
+
+
 def new_node(tree: bpy.types.NodeTree, impl: str) -> bpy.types.Node:
     """A new Cook-Torrance node of the given implementation in ``tree`` (unlinked)."""
     if impl == "osl":
@@ -145,12 +154,11 @@ def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bp
     new.location = old.location
     for key in SURFACE_INPUTS:
         src, dst = surface_input(old, key), surface_input(new, key)
-        if src.is_linked:
-            from_socket = src.links[0].from_socket
-            if not (key == "normal" and impl == "nodes" and _is_geometry_normal(from_socket)):
-                tree.links.new(from_socket, dst)
-        elif key != "normal":
-            dst.default_value = src.default_value
+        if key != "normal":
+            carry_input(tree, src, dst)
+        elif src.is_linked and not (impl == "nodes" and
+                                    _is_geometry_normal(src.links[0].from_socket)):
+            tree.links.new(src.links[0].from_socket, dst)
     for key in OPTIONS:
         value = get_option(old, key)
         if key == "ibl" and impl == "nodes" and value == "reference":
