@@ -1,8 +1,9 @@
 """Environment importance-sampling tables for the OSL reference integrator.
 
-The HDRI is split into tiles; tile (r, c) is drawn with a probability proportional to its
-mean luminance times its solid angle (sin of the polar angle), floored so that no tile is
-impossible. The draw uses two inverse-CDF tables looked up with "closest" filtering:
+The HDRI is split into a fixed grid of R x C = 128 x 256 tiles (4 x 4 texels of a 1k map;
+larger maps are averaged, smaller ones repeated); tile (r, c) is drawn with a probability
+proportional to its mean luminance times its solid angle (sin of the polar angle), floored so
+that no tile is impossible. The draw uses two inverse-CDF tables read at texel centres:
 
 - marginal.exr     (M x 1):  entry k -> tile row for u1 in [k/M, (k+1)/M)
 - conditional.exr  (M x R):  row r, entry k -> tile column for u2 in [k/M, (k+1)/M)
@@ -12,6 +13,10 @@ q is computed from the tables themselves (counts / M), so the density the shader
 is exactly that of the draw it makes: the estimator stays unbiased whatever M is
 (Pharr, Jakob & Humphreys, PBRT 3rd ed., 13.6.7 and 14.2.4, with tabulated inverses).
 In solid angle: p(omega) = q / (2 pi^2 sin(theta)).
+
+The table sizes are fixed so that the shader can name them (its ENV_* constants; a test checks
+they agree): OSL cannot ask a texture its size in Blender 5.2 (gettextureinfo crashes Cycles)
+and from 5.2 on texture() ignores "closest", so every table is read at its texel centres.
 """
 
 from __future__ import annotations
@@ -21,22 +26,28 @@ from pathlib import Path
 import numpy as np
 
 from .hdri import file_hash, load_hdri, write_float_exr
+from .ibl_bake import area_resample
 from .params import REC709_LUMINANCE
 from .paths import atomic_folder, cache_dir
 
-TABLE_SIZE = 4096        # M: resolution of the inverse CDFs
-TILE = 4                 # tile edge in HDRI pixels (a 1024x512 map gives 256x128 tiles)
+TABLE_SIZE = 4096        # M: resolution of the inverse CDFs (the shader's ENV_TABLE_SIZE)
+TILE_ROWS = 128          # R (the shader's ENV_TILE_ROWS)
+TILE_COLS = 256          # C (the shader's ENV_TILE_COLS)
 FLOOR = 0.01             # every tile gets at least this fraction of the mean weight
-VERSION = 2               # 2: the folder is written whole (paths.atomic_folder)
+VERSION = 3               # 3: a fixed tile grid, whatever the HDRI's size
 
 
-def tile_weights(pixels: np.ndarray, tile: int = TILE) -> np.ndarray:
-    """Mean luminance (Rec. 709) of each tile times sin(theta) at the tile's centre row."""
+def tile_weights(pixels: np.ndarray, rows: int = TILE_ROWS, cols: int = TILE_COLS) -> np.ndarray:
+    """Mean luminance (Rec. 709) of each tile times sin(theta) at the tile's centre row.
+    Tiles that cover whole texels average them; otherwise the texels' areas are shared out
+    (ibl_bake.area_resample), so a map smaller than the grid repeats its texels."""
     h, w, _ = pixels.shape
-    t = max(1, min(tile, h // 4))
-    rows, cols = h // t, w // t
-    lum = np.maximum(pixels[: rows * t, : cols * t], 0) @ np.array(REC709_LUMINANCE, dtype=np.float32)
-    lum = lum.reshape(rows, t, cols, t).mean(axis=(1, 3)).astype(np.float64)
+    lum = np.maximum(pixels, 0) @ np.array(REC709_LUMINANCE, dtype=np.float32)
+    if h % rows == 0 and w % cols == 0:
+        lum = lum.reshape(rows, h // rows, cols, w // cols).mean(axis=(1, 3))
+    else:
+        lum = area_resample(area_resample(lum, rows, 0, None), cols, 1, None)
+    lum = lum.astype(np.float64)
     theta = (np.arange(rows) + 0.5) / rows * np.pi
     weight = lum * np.sin(theta)[:, None]
     mean = weight.mean()
@@ -71,7 +82,8 @@ def build_tables(weights: np.ndarray, size: int = TABLE_SIZE):
 def tables_for(hdri_path) -> dict:
     """Paths of the three tables for an HDRI, built once and cached by content hash."""
     hdri_path = Path(hdri_path)
-    key = f"env-importance-v{VERSION}-{TILE}-{TABLE_SIZE}-{file_hash(hdri_path)}"
+    key = (f"env-importance-v{VERSION}-{TILE_ROWS}x{TILE_COLS}-{TABLE_SIZE}-"
+           f"{file_hash(hdri_path)}")
     folder = cache_dir() / key
     names = {"marginal": folder / "marginal.exr", "conditional": folder / "conditional.exr",
              "pdf": folder / "pdf.exr"}

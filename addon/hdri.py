@@ -67,6 +67,18 @@ def read_hdri(path, repair: bool = False):
     return pixels, count
 
 
+def image_width(path) -> int:
+    """An image's width in texels, from its header (0 when it cannot be read)."""
+    OIIO = oiio()
+    inp = OIIO.ImageInput.open(str(path))
+    if inp is None:
+        return 0
+    try:
+        return int(inp.spec().width)
+    finally:
+        inp.close()
+
+
 def load_hdri(path) -> np.ndarray:
     """The HDRI's pixels (read_hdri), refusing NaN/Inf: a render would carry them."""
     return read_hdri(path)[0]

@@ -90,7 +90,7 @@ def row_solid_angles(h: int, w: int) -> np.ndarray:
     return (2 * np.pi / w) * (np.sin(edges[:-1]) - np.sin(edges[1:]))
 
 
-def _area_resample(a: np.ndarray, n: int, axis: int, weights: np.ndarray | None) -> np.ndarray:
+def area_resample(a: np.ndarray, n: int, axis: int, weights: np.ndarray | None) -> np.ndarray:
     """Area-average ``a`` along ``axis`` onto n equal bins (texels are constant over their
     extent; ``weights`` the measure of each source texel, e.g. its solid angle)."""
     a = np.moveaxis(a, axis, 0).astype(np.float64)
@@ -120,7 +120,7 @@ def downsample(img: np.ndarray, w: int) -> np.ndarray:
         weighted = (img * dw[:, None, None].astype(np.float32)).reshape(h, fy, w, fx, 3)
         return (weighted.sum(axis=(1, 3)) / (dw.reshape(h, fy).sum(axis=1)[:, None, None] * fx)
                 ).astype(np.float32)
-    return _area_resample(_area_resample(img, h, 0, dw), w, 1, None)
+    return area_resample(area_resample(img, h, 0, dw), w, 1, None)
 
 
 # ---------------------------------------------------------------------------------------

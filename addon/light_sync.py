@@ -198,14 +198,15 @@ def update_environment(node: bpy.types.Node, scene: bpy.types.Scene,
     env = env or Environment(scene)
     ibl = model_node.get_option(node, "ibl")
     if model_node.implementation(node) == "osl":
+        osl_shader.set_texture_convention(node)        # a file saved by another Blender
         sock = lambda ident: osl_shader.socket(node, ident)  # noqa: E731
-        sock("hdri").default_value = str(env.hdri)
         if ibl == "reference":
             sock("env_marginal").default_value = env.tables["marginal"]
             sock("env_conditional").default_value = env.tables["conditional"]
             sock("env_pdf_table").default_value = env.tables["pdf"]
+            osl_shader.set_environment(node, env.hdri)
         else:
-            sock("ibl_bake").default_value = str(env.bake)
+            osl_shader.set_environment(node, env.hdri, env.bake)
     else:
         from .node_group import set_bake
         set_bake(node.node_tree, env.bake)

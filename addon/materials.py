@@ -135,14 +135,13 @@ def set_lighting(mat: bpy.types.Material, lighting: Lighting) -> None:
     sock = lambda ident: osl_shader.socket(node, ident)  # noqa: E731
     sock("sun_to_light").default_value = lighting.sun_to_light
     sock("sun_irradiance").default_value = tuple(lighting.sun_irradiance) + (1.0,)
-    sock("hdri").default_value = lighting.hdri
     sock("hdri_strength").default_value = lighting.hdri_strength
     sock("hdri_rotation").default_value = lighting.hdri_rotation
     tables = lighting.env_tables
     sock("env_marginal").default_value = tables.get("marginal", "")
     sock("env_conditional").default_value = tables.get("conditional", "")
     sock("env_pdf_table").default_value = tables.get("pdf", "")
-    sock("ibl_bake").default_value = lighting.ibl_bake
+    osl_shader.set_environment(node, lighting.hdri, lighting.ibl_bake)
 
 
 def node_group_material(name="Cook-Torrance (nodes)", options: ModelOptions | None = None,

@@ -6,6 +6,8 @@ read-only, and external-mode script nodes write the compiled .oso next to the .o
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import bpy
 
 from .errors import UserError
@@ -50,6 +52,28 @@ def compile_script_node(node: bpy.types.ShaderNodeScript) -> None:
     if errors or "BSDF" not in node.outputs:
         raise UserError("the Cook-Torrance OSL shader failed to compile: "
                         + ("; ".join(errors) or "no output socket") + " (see the console)")
+    set_texture_convention(node)
+
+
+def set_texture_convention(node: bpy.types.ShaderNodeScript) -> None:
+    """Tell the shader how this Blender's OSL texture() counts rows (compat.py); a material
+    saved by another Blender version is corrected by light_sync when it syncs."""
+    from .compat import osl_texture_rows_bottom_up
+    socket(node, "tex_bottom_up").default_value = int(osl_texture_rows_bottom_up())
+
+
+def set_environment(node: bpy.types.ShaderNodeScript, hdri, bake=None) -> None:
+    """Point the shader at the world's HDRI file and, when given, its split-sum bake folder;
+    also its width in texels, which the shader needs to filter lat-long images near their
+    edges (the bake's level 0 is the HDRI itself, so either file tells it)."""
+    from .hdri import image_width
+    from .ibl_bake import level_file
+    socket(node, "hdri").default_value = str(hdri) if hdri else ""
+    if bake is not None:
+        socket(node, "ibl_bake").default_value = str(bake)
+    bake = socket(node, "ibl_bake").default_value
+    source = hdri or (Path(bake) / level_file(0) if bake else None)
+    socket(node, "hdri_width").default_value = image_width(source) if source else 0
 
 
 def socket(node: bpy.types.Node, identifier: str, output: bool = False) -> bpy.types.NodeSocket:

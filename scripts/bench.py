@@ -5,7 +5,7 @@ Writes bench/results.json and bench/results.md (the README's tables). Each figur
 run on this machine; Cycles' synchronisation (scene + shader compile) is reported apart from
 its render time.
 
-    .venv/bin/python scripts/bench.py [--quick] [--only render|bake]
+    .venv-bpy<series>/bin/python scripts/bench.py [--quick] [--only render|bake]
 
 ``--only`` re-runs one section and keeps the other from the existing results.json.
 """

@@ -1,31 +1,66 @@
-# Sourced by scripts/ctlab.sh and scripts/test.sh: make sure .venv exists with the pinned
-# requirements (bpy 4.5 needs CPython 3.11), then set $PY to its interpreter.
+# Sourced by scripts/ctlab.sh and scripts/test.sh: choose the Blender LTS series, make sure its
+# virtual environment exists with the pinned requirements, then set $PY to its interpreter.
+#
+# The series: $CTLAB_BLENDER when set (4.5 or 5.2); otherwise 5.2 LTS (the current release,
+# built for CPython 3.13) when a working Python 3.13 is found, else 4.5 LTS (CPython 3.11).
+# Each series has its own environment, .venv-bpy<series>, made on first use.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-VENV="$ROOT/.venv"
-REQ="$ROOT/scripts/requirements.txt"
+
+# A Python of version $1 (e.g. 3.13) that really runs: on PATH (pyenv's shim for a version it
+# does not select refuses to run, so each candidate is tried), then pyenv's versions folder.
+ctlab_find_python() {
+  local want="$1" candidate
+  for candidate in "python$want" $(ls -d "${PYENV_ROOT:-$HOME/.pyenv}"/versions/"$want".*/bin/"python$want" 2>/dev/null | sort -V -r) python3; do
+    if command -v "$candidate" >/dev/null 2>&1 &&
+       [ "$("$candidate" -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null)" = "$want" ]; then
+      command -v "$candidate"; return 0
+    fi
+  done
+  return 1
+}
+
+# The CPython each series is built for.
+ctlab_python_version() {
+  case "$1" in 4.5|5.0) echo 3.11 ;; 5.1|5.2) echo 3.13 ;; *) return 1 ;; esac
+}
+
+# scripts/version_matrix.sh borrows the two functions above
+if [ "${1:-}" = "--functions-only" ]; then return 0; fi
+
+SERIES="${CTLAB_BLENDER:-}"
+if [ -z "$SERIES" ]; then
+  if ctlab_find_python 3.13 >/dev/null; then SERIES=5.2; else SERIES=4.5; fi
+  CTLAB_CHOSEN="chosen: $( [ "$SERIES" = 5.2 ] && echo "Python 3.13 found" || echo "no Python 3.13 found")"
+else
+  CTLAB_CHOSEN="set by CTLAB_BLENDER"
+fi
+case "$SERIES" in
+  4.5|5.2) ;;
+  *) echo "ctlab: error: CTLAB_BLENDER=$SERIES is not a supported LTS series; use 4.5 or 5.2" >&2; exit 2 ;;
+esac
+PYVER="$(ctlab_python_version "$SERIES")"
+VENV="$ROOT/.venv-bpy$SERIES"
+REQ="$ROOT/scripts/requirements-$SERIES.txt"
 STAMP="$VENV/.requirements.sha256"
 want="$(sha256sum "$REQ" | cut -d' ' -f1)"
 if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$STAMP" 2>/dev/null)" != "$want" ]; then
   PYTHON="${CTLAB_PYTHON:-}"
   if [ -z "$PYTHON" ]; then
-    for candidate in python3.11 python3; do
-      if command -v "$candidate" >/dev/null 2>&1 &&
-         [ "$("$candidate" -c 'import sys; print(sys.version_info[:2] == (3, 11))')" = True ]; then
-        PYTHON="$candidate"; break
-      fi
-    done
+    PYTHON="$(ctlab_find_python "$PYVER")" || {
+      echo "ctlab: error: Python $PYVER is needed for Blender $SERIES (bpy is built for it);" \
+           "install it or set CTLAB_PYTHON" >&2
+      exit 2
+    }
   fi
-  if [ -z "$PYTHON" ]; then
-    echo "ctlab: error: Python 3.11 is needed (bpy 4.5 is built for it); set CTLAB_PYTHON" >&2
-    exit 2
-  fi
-  echo "ctlab: setting up $VENV (bpy 4.5, numpy<2, pytest; first run only)" >&2
+  echo "ctlab: setting up $VENV (Blender $SERIES LTS, $PYTHON; first run only)" >&2
+  rm -rf "$VENV"
   "$PYTHON" -m venv "$VENV"
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ" >&2
   echo "$want" > "$STAMP"
 fi
 PY="$VENV/bin/python"
+echo "ctlab: Blender $SERIES LTS ($CTLAB_CHOSEN; $PY)" >&2
 # EEVEE renders headless through Mesa's EGL: install its libraries when they are missing and
 # the system's package manager can be used (otherwise the EEVEE test and --engine eevee fail).
 # (ldconfig's list is read whole first: with pipefail, grep -q closing the pipe early would

@@ -7,7 +7,7 @@ import math
 import bpy
 import numpy as np
 
-from addon import register, renderer, scene_builder
+from addon import compat, register, renderer, scene_builder
 from addon.compare import read_image
 from addon.paths import bundled_hdri
 
@@ -34,7 +34,7 @@ def _scene():
     sun.rotation_euler = (math.radians(-50), math.radians(-30), 0.0)
     scene.collection.objects.link(sun)
     gold = bpy.data.materials.new("Gold")
-    gold.use_nodes = True
+    compat.use_nodes(gold)
     bsdf = gold.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (1.0, 0.766, 0.336, 1.0)
     bsdf.inputs["Metallic"].default_value = 1.0

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import render, sphere_pixels
+from addon import compat
 from addon.params import LIGHTING_VIEWS, TERM_VIEWS
 
 ALL_VIEWS = TERM_VIEWS + LIGHTING_VIEWS
@@ -121,7 +122,7 @@ def _user_material(group, albedo, normal):
     as an artist wires it in the shader editor."""
     import bpy
     mat = bpy.data.materials.new("User Material")
-    mat.use_nodes = True
+    compat.use_nodes(mat)
     nt = mat.node_tree
     nt.nodes.clear()
     g = nt.nodes.new("ShaderNodeGroup")

@@ -213,7 +213,7 @@ def _principled_state(mat):
 
 def _user_principled(cube):
     mat = bpy.data.materials.new("User Paint")
-    mat.use_nodes = True
+    compat.use_nodes(mat)
     cube.data.materials.clear()
     cube.data.materials.append(mat)
     nt = mat.node_tree
