@@ -76,21 +76,37 @@ def test_split_sum_in_a_white_furnace_is_the_directional_albedo(tmp_path, unifor
 
 def test_split_sum_equals_the_reference_on_mirrors_within_noise(tmp_path):
     """Smoothness 1 (alpha = 0.002): the split-sum's level 0 is the HDRI itself and A + B the
-    mirror's Fresnel, so it must agree with the Monte Carlo reference as well as two reference
-    renders with different seeds agree with each other (forest.exr, whose sun makes the glints
-    noisy). Lambert diffuse: its irradiance split is exact."""
+    mirror's Fresnel, so it must agree with the Monte Carlo reference up to noise (forest.exr,
+    whose sun makes the glints noisy). Lambert diffuse: its irradiance split is exact.
+
+    The noise is the sun's glint: it covers about a pixel, so the pixel-jitter pattern
+    (Cycles' seed) alone moves a mirror sphere's mean luminance by up to 4% (metallic 0.5,
+    seeds 0-3, bpy 5.0: split-sum 0.833, 0.815, 0.789, 0.788, reference 0.833, 0.798, 0.797,
+    0.782; bpy 4.5: 0.791, 0.806, 0.814, 0.810 and 0.793, 0.804, 0.819, 0.825). At pixel
+    centres, with no jitter, 4.5 and 5.0 render identical values. So both are averaged over
+    the same two seeds and must agree within 4%, where the per-seed differences reach 2%;
+    level 0 scaled by 0.9 (the mutation tried) moved the half-metal mirror by 4.8% and failed.
+    (A bound from two reference seeds' own difference, the test's earlier form, failed on
+    5.0 and 5.1 where those two seeds happened to agree within 0.1%.) The median per-pixel
+    CIEDE2000, which ignores the few glint pixels, is held to the reference's own."""
     kw = dict(view="indirect", grid=(2, 3), size=96, samples=64, diffuse_model="lambert",
               albedo=(1.0, 0.766, 0.336))
-    ref1, scene = render(tmp_path / "ref1", seed=1, **kw)
-    ref2, _ = render(tmp_path / "ref2", seed=2, **kw)
-    split, _ = render(tmp_path / "split", ibl="split_sum", **kw)
-    disp = {k: read_image(tmp_path / k / "render.png") for k in ("ref1", "ref2", "split")}
+    imgs = {}
+    for seed in (1, 2):
+        imgs["ref", seed], scene = render(tmp_path / f"ref{seed}", seed=seed, **kw)
+        imgs["split", seed], _ = render(tmp_path / f"split{seed}", ibl="split_sum", seed=seed,
+                                        **kw)
+    disp = {k: read_image(tmp_path / k / "render.png") for k in ("ref1", "ref2", "split1")}
+    checked = 0
     for cell in scene["cells"]:
         if cell["smoothness"] != 1.0:
             continue
         m = sphere_pixels(scene, cell, margin_px=2)
-        y1, y2, ys = ((im[m] @ Y).mean() for im in (ref1, ref2, split))
-        noise = abs(y2 - y1) / y1
-        assert abs(ys - y1) / y1 < 2 * noise + 0.01, (cell["col"], ys, y1, y2)
+        y = {k: (im[m] @ Y).mean() for k, im in imgs.items()}
+        y_ref = (y["ref", 1] + y["ref", 2]) / 2
+        y_split = (y["split", 1] + y["split", 2]) / 2
+        assert abs(y_split - y_ref) / y_ref < 0.04, (cell["col"], y)
         de = lambda k: np.median(ciede2000(srgb_to_lab(disp["ref1"][m]), srgb_to_lab(disp[k][m])))  # noqa: E731
-        assert de("split") < 1.5 * de("ref2") + 0.2, (cell["col"], de("split"), de("ref2"))
+        assert de("split1") < 1.5 * de("ref2") + 0.2, (cell["col"], de("split1"), de("ref2"))
+        checked += 1
+    assert checked == 3
