@@ -16,7 +16,9 @@ while [ $# -gt 0 ]; do
 done
 [ ${#series[@]} -eq 0 ] && series=(4.5 5.0 5.1 5.2)
 LOG="$ROOT/out/versions"; mkdir -p "$LOG"
+BASE_LD_LIBRARY_PATH="${LD_LIBRARY_PATH:-}"
 for s in "${series[@]}"; do
+  LD_LIBRARY_PATH="$BASE_LD_LIBRARY_PATH"
   venv="$ROOT/.venv-bpy$s"
   case "$s" in
     4.5|5.2)
@@ -36,6 +38,9 @@ for s in "${series[@]}"; do
       fi ;;
     *) echo "version_matrix: error: unknown series $s; use 4.5 5.0 5.1 5.2" >&2; exit 2 ;;
   esac
+  # some wheels (5.0) carry libraries such as libtbb.so.12 in bpy/lib without finding them
+  site="$("$venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+  export LD_LIBRARY_PATH="$site/bpy/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
   version="$("$venv/bin/python" -c 'import bpy; print(bpy.app.version_string)' 2>/dev/null | tail -1)"
   pyv="$("$venv/bin/python" -c 'import platform, numpy; print(platform.python_version(), "/ numpy", numpy.__version__)')"
   echo "version_matrix: bpy $version: running the suite (log: $LOG/$s.log)" >&2
