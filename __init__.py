@@ -4,4 +4,4 @@
 # import it as a plain module when the checkout's folder name is not an identifier (pytest
 # sets up the root package for the tests below it): then there is nothing to register.
 if __package__:
-    from .addon.register import register, unregister  # noqa: F401
+    from .addon.ui.register import register, unregister  # noqa: F401

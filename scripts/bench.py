@@ -22,12 +22,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-import bpy  # noqa: E402
+import bpy  # noqa: E402,F401  (Blender as a module)
 
-getattr(bpy.utils, "expose_bundled_modules", lambda: None)()  # 4.4+
-from addon import cli  # noqa: E402
-from addon.params import ModelOptions  # noqa: E402
-from addon.scene_builder import MatrixSettings  # noqa: E402
+from addon.core.model import ModelOptions  # noqa: E402
+from addon.core.settings import MatrixSettings  # noqa: E402
+from addon.jobs import pipeline  # noqa: E402
 
 OUT = ROOT / "bench"
 BUNDLED = ("city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset")
@@ -39,8 +38,8 @@ def one_render(shader, ibl, grid, size, samples, work, engine="cycles"):
     s = MatrixSettings(rows=grid, cols=grid, width=size, height=size, shader=shader,
                        model=ModelOptions(view="full", ibl=ibl))
     start = time.perf_counter()
-    d = cli.render_one(s, work / f"{shader}-{ibl}-{grid}-{size}-{samples}-{engine}", samples,
-                       verbose=False, engine=engine)
+    d = pipeline.render_one(s, work / f"{shader}-{ibl}-{grid}-{size}-{samples}-{engine}",
+                            samples, engine=engine)
     name = shader if shader == "principled" else f"{shader} {ibl}" + (
         " (eevee)" if engine == "eevee" else "")
     return {"shader": name, "grid": f"{grid}x{grid}", "size": size, "samples": samples,
@@ -94,7 +93,7 @@ def render_table(section: dict) -> list:
 def synthetic_hdri(path: Path, width: int) -> None:
     """A smooth sky-and-ground gradient with a small sun of radiance 2000."""
     import numpy as np
-    from addon.hdri import write_float_exr
+    from addon.core.hdri import write_float_exr
     h = width // 2
     e = (0.5 - (np.arange(h) + 0.5) / h)[:, None] * np.pi
     s = (np.arange(width) + 0.5)[None, :] / width
@@ -107,8 +106,8 @@ def synthetic_hdri(path: Path, width: int) -> None:
 
 
 def bench_bake() -> dict:
-    from addon import ibl_bake
-    from addon.paths import bundled_hdri
+    from addon.core import ibl_bake
+    from addon.blender.paths import bundled_hdri
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -13,9 +13,7 @@ if ROOT not in sys.path:
 
 import bpy  # noqa: E402  (Blender as a module, or the running Blender)
 
-getattr(bpy.utils, "expose_bundled_modules", lambda: None)()  # 4.4+
-
-from addon.cli import main  # noqa: E402
+from addon.jobs.cli import main  # noqa: E402  (the Blender layer exposes its bundled modules)
 
 if __name__ == "__main__":
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]

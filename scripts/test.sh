@@ -1,5 +1,11 @@
 #!/usr/bin/env bash
-# The test suite (real Blender: real Cycles, real OSL, real renders). Extra arguments go to pytest.
+# The test suite (real Blender: real Cycles, real OSL, real renders). Extra arguments go to
+# pytest; --quick runs the fast tier alone (no renders: the pure core, the builders, the
+# interface and the architecture checks), for the edit-test loop.
 source "$(dirname "${BASH_SOURCE[0]}")/bootstrap.sh"
 cd "$ROOT"
-exec "$PY" -m pytest tests -ra "$@"
+args=()
+for a in "$@"; do
+  if [ "$a" = "--quick" ]; then args+=(-m quick); else args+=("$a"); fi
+done
+exec "$PY" -m pytest tests -ra "${args[@]}"

@@ -15,14 +15,19 @@ _CACHE = tempfile.mkdtemp(prefix="ctlab-test-cache-")
 os.environ.setdefault("CTLAB_CACHE", _CACHE)
 os.environ.setdefault("XDG_CACHE_HOME", _CACHE)
 
-import bpy  # noqa: E402
+import bpy  # noqa: E402,F401  (Blender as a module)
 
-getattr(bpy.utils, "expose_bundled_modules", lambda: None)()  # 4.4+
+from addon import blender  # noqa: E402,F401  (exposes Blender's bundled modules)
+from addon.core import compare  # noqa: E402
+from addon.core.hdri import write_float_exr  # noqa: E402
+from addon.core.model import ModelOptions  # noqa: E402
+from addon.core.settings import MatrixSettings  # noqa: E402
+from addon.jobs import pipeline  # noqa: E402
 
-from addon import cli, compare  # noqa: E402
-from addon.hdri import write_float_exr  # noqa: E402
-from addon.params import ModelOptions  # noqa: E402
-from addon.scene_builder import MatrixSettings  # noqa: E402
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "quick: the fast tier (no renders); "
+                                       "./scripts/test.sh --quick runs only these")
 
 
 def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96,
@@ -37,7 +42,7 @@ def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96,
                        model=model, **kw)
     dirs = {v: Path(out_dir) / v for v in views} if isinstance(view, tuple) else \
         {view: Path(out_dir)}
-    cli.render_views(s, dirs, samples, verbose=False, pixel_centres=pixel_centres, engine=engine)
+    pipeline.render_views(s, dirs, samples, pixel_centres=pixel_centres, engine=engine)
     images = {v: compare.read_image(d / "render.exr") for v, d in dirs.items()}
     scene = json.loads((next(iter(dirs.values())) / "scene.json").read_text())
     return (images if isinstance(view, tuple) else images[view]), scene
@@ -52,7 +57,7 @@ def sphere_pixels(scene, cell, margin_px=1.0):
 @pytest.fixture
 def addon():
     """The add-on registered in a factory-startup scene (the default cube, light, camera)."""
-    from addon import register
+    from addon.ui import register
     bpy.ops.wm.read_factory_settings(use_empty=False)
     register.register()
     yield
@@ -69,7 +74,7 @@ def uniform_hdri(tmp_path_factory):
 
 def bad_images(tmp_path):
     """Bad HDRIs, keyed by the words their error message must contain."""
-    from addon.hdri import oiio
+    from addon.core.hdri import oiio
     OIIO = oiio()
     png = tmp_path / "ldr.png"
     buf = OIIO.ImageBuf(OIIO.ImageSpec(64, 32, 3, OIIO.UINT8))

@@ -1,4 +1,4 @@
-"""An independent numpy reference of shared/SPEC.md (written from the SPEC text, not from the
+"""An independent numpy reference of docs/model.md (written from the document, not from the
 OSL source), evaluated in float64 at given normals, for checking rendered views."""
 
 import numpy as np

@@ -4,13 +4,16 @@ ERROR report from the operator) and writes nothing. The command line runs in-pro
 
 import re
 import types
-from pathlib import Path
 
 import bpy
 import pytest
 
-from addon import cli, operators
+from addon.jobs import cli
+
+from addon.ui import operators
 from conftest import ROOT, bad_images
+
+pytestmark = pytest.mark.quick       # no renders
 
 # ID -> (argv, message). @BAD:<key> is a bad image from conftest.bad_images; @FILE a plain file.
 RENDER = ["render", "--shader", "osl", "--size", "32", "--grid", "1x1"]
@@ -59,7 +62,7 @@ def _argv(case, tmp_path):
     blocker = tmp_path / "a-file"
     blocker.write_text("x")
     (tmp_path / "empty").mkdir()
-    from addon.paths import bundled_hdri
+    from addon.blender.paths import bundled_hdri
     subs = {"@FOREST": str(bundled_hdri("forest")), "@EMPTY": str(tmp_path / "empty")}
     argv = []
     for a in CLI_CASES[case][0]:

@@ -5,7 +5,6 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -33,7 +32,7 @@ def test_render_writes_exr_png_and_scene_json(tmp_path):
     cell = next(c for c in scene["cells"] if c["row"] == 1 and c["col"] == 2)
     assert cell["metallic"] == 1.0 and cell["smoothness"] == 0.0
     # the NdotV view peaks (= 1) at each sphere's centre pixel, where the normal faces the camera
-    from addon.compare import read_image
+    from addon.core.compare import read_image
     img = read_image(out / "render.exr")
     for c in scene["cells"]:
         x, y = (int(v) for v in c["center_px"])

@@ -1,12 +1,14 @@
 """The white furnace on the shipped OSL shader: the rendered specular directional albedo
-matches brute-force quadrature of the SPEC formulas (tests/reference_model.py) view angle by
+matches brute-force quadrature of the model's formulas (tests/reference_model.py) view angle by
 view angle, never exceeds 1, and the two G models differ as the quadrature says."""
 
 import numpy as np
 import pytest
 
-from addon import cli, energy
-from addon.compare import read_image
+from addon.jobs import pipeline
+
+from addon.core import energy
+from addon.core.compare import read_image
 from reference_model import specular_albedo
 
 
@@ -33,7 +35,7 @@ def furnace(tmp_path_factory):
     out = tmp_path_factory.mktemp("furnace")
     curves, expected = {}, {}
     for g in ("cook_torrance", "smith_ggx_correlated"):
-        scene = cli.render_one(energy.furnace_settings(g), out / g, 16, verbose=False)
+        scene = pipeline.render_one(energy.furnace_settings(g), out / g, 16)
         curves[g] = energy.directional_albedo(read_image(out / g / "render.exr"), scene)
         expected[g] = energy.directional_albedo(_expected_image(scene, g), scene)
     return curves, expected
@@ -53,7 +55,7 @@ def test_furnace_albedo_matches_quadrature_and_never_exceeds_one(furnace):
 
 
 def test_cook_torrance_g_keeps_more_energy_than_smith_when_rough(furnace):
-    """Quadrature of the SPEC formulas: at high roughness the V-cavity (Cook-Torrance) G masks
+    """Quadrature of the model's formulas: at high roughness the V-cavity (Cook-Torrance) G masks
     less than Smith's, so it keeps more energy, most at grazing views; smooth, they agree."""
     curves, _ = furnace
     ct, smith = (curves[g] for g in ("cook_torrance", "smith_ggx_correlated"))

@@ -2,8 +2,11 @@
 draw it makes (checked by simulating the draw), and it follows the HDRI's luminance."""
 
 import numpy as np
+import pytest
 
-from addon.env_importance import build_tables, tile_weights
+from addon.core.env_importance import build_tables, tile_weights
+
+pytestmark = pytest.mark.quick
 
 
 def test_density_is_that_of_the_tabulated_draw():
@@ -35,7 +38,7 @@ def test_uniform_world_gives_solid_angle_density():
 def _tile_luminance(weights):
     """Undo tile_weights' sin(theta) factor and floor: W = L sin + FLOOR a sin with
     a = mean(L sin), so with X = W / sin, a = mean(X sin) / (1 + FLOOR mean(sin))."""
-    from addon.env_importance import FLOOR
+    from addon.core.env_importance import FLOOR
     rows = weights.shape[0]
     sin = np.sin((np.arange(rows) + 0.5) / rows * np.pi)[:, None]
     x = weights / sin
@@ -47,8 +50,8 @@ def test_small_and_odd_sized_maps_fill_the_fixed_grid():
     """The grid is 128 x 256 whatever the map: a 16 x 8 map repeats each texel over 16 x 16
     tiles; a 1000 x 500 map (no whole tiles) keeps its mean luminance. A grid built from the
     map's own size (the old rule), or a resampling that lost area, fails."""
-    from addon.env_importance import TILE_COLS, TILE_ROWS
-    from addon.params import REC709_LUMINANCE
+    from addon.core.env_importance import TILE_COLS, TILE_ROWS
+    from addon.core.model import REC709_LUMINANCE
     y = np.array(REC709_LUMINANCE, np.float32)
     rng = np.random.default_rng(2)
     small = rng.gamma(2.0, 1.0, size=(8, 16, 3)).astype(np.float32)

@@ -78,7 +78,7 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
                        timeout=300)
     assert "EXTENSION-OK" in p.stdout, p.stdout[-2000:] + p.stderr[-2000:]
     # the same panels, operators, preferences, properties and menu entry as the source tree
-    from addon import properties, register, ui
+    from addon.ui import properties, register, panels as ui
     lines = dict(line.split("=", 1) for line in p.stdout.splitlines()
                  if line.startswith(("CLASSES=", "PROPS=", "MENU=")))
     assert lines["CLASSES"].split(",") == sorted(c.__name__ for c in register.CLASSES

@@ -4,7 +4,7 @@ import numpy as np
 
 from conftest import render, sphere_pixels
 from reference_model import specular_albedo
-from addon.compare import ciede2000, read_image, srgb_to_lab
+from addon.core.compare import ciede2000, read_image, srgb_to_lab
 
 
 def _cell(scene, row, col):

@@ -1,4 +1,4 @@
-"""The split-sum bake (addon/ibl_bake.py): the DFG table against brute-force quadrature,
+"""The split-sum bake (addon/core/ibl_bake.py): the DFG table against brute-force quadrature,
 pre-filtered levels and irradiance against closed forms, the cache, and bad input."""
 
 import json
@@ -11,10 +11,12 @@ import pytest
 
 from conftest import ROOT, bad_images
 from reference_model import specular_albedo
-from addon import ibl_bake
-from addon.compare import read_image
-from addon.errors import UserError
-from addon.hdri import write_float_exr
+from addon.core import ibl_bake
+from addon.core.compare import read_image
+from addon.core.errors import UserError
+from addon.core.hdri import write_float_exr
+
+pytestmark = pytest.mark.quick       # no renders
 
 CTLAB = [sys.executable, str(ROOT / "scripts" / "ctlab.py")]
 N = ibl_bake.DFG_SIZE
@@ -36,7 +38,7 @@ def _directions(h, w):
 
 @pytest.fixture(scope="module")
 def forest_bake():
-    from addon.paths import bundled_hdri
+    from addon.blender.paths import bundled_hdri
     return ibl_bake.bake(bundled_hdri("forest"))
 
 
@@ -50,7 +52,7 @@ DFG_ENTRIES = ((12, 40), (12, 63), (20, 12), (32, 3), (32, 30), (48, 3), (48, 50
 @pytest.mark.parametrize("g_model", ["cook_torrance", "smith_ggx_correlated"])
 def test_dfg_table_matches_brute_force_quadrature(forest_bake, g_model):
     """A and B read from the baked EXR equal the directional albedo of f_s integrated by
-    brute-force midpoint quadrature over (theta_l, phi_l) of the SPEC formulas (F0 = 1 gives
+    brute-force midpoint quadrature over (theta_l, phi_l) of the model's formulas (F0 = 1 gives
     A + B, F0 = 0 gives B), to 1e-3; so does the Disney factor (f_d of diffColor 1)."""
     table = read_image(forest_bake / ibl_bake.dfg_file(g_model))
     assert table.shape == (N, N, 3)
@@ -127,7 +129,7 @@ def test_a_bright_texel_spreads_into_a_ggx_lobe_that_widens_with_roughness(tmp_p
         assert np.sum(level * dw) == pytest.approx(phi_total, rel=0.02), m
         widths.append(np.sqrt(np.sum(level * dw * np.arccos(mu) ** 2) / np.sum(level * dw)))
         if m == 3:
-            # its shape is SPEC's D(h) max(r.l, 0), h = normalize(r + l), carrying the
+            # its shape is the model's D(h) max(r.l, 0), h = normalize(r + l), carrying the
             # texel's power: P(r) = power K(r.l0) / integral K, the integral by quadrature in mu
             a2 = (0.5 ** 2) ** 2
 
@@ -144,7 +146,7 @@ def test_a_bright_texel_spreads_into_a_ggx_lobe_that_widens_with_roughness(tmp_p
 
 def test_second_bake_is_a_cache_hit_and_rewrites_nothing(tmp_path, forest_bake):
     messages = []
-    from addon.paths import bundled_hdri
+    from addon.blender.paths import bundled_hdri
     before = {p.name: p.stat().st_mtime_ns for p in forest_bake.iterdir()}
     again = ibl_bake.bake(bundled_hdri("forest"), lambda f, m: messages.append(m))
     assert again == forest_bake
@@ -166,7 +168,7 @@ def test_a_failed_bake_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
     with pytest.raises(UserError, match="simulated"):
         ibl_bake.bake(path)
     cache = ibl_bake.cache_dir()
-    from addon.hdri import file_hash
+    from addon.core.hdri import file_hash
     leftovers = [p.name for p in cache.iterdir() if file_hash(path) in p.name or "partial" in p.name]
     assert leftovers == []
 

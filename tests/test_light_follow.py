@@ -7,9 +7,12 @@ import math
 import bpy
 import numpy as np
 
-from addon import compat, register, renderer, scene_builder
-from addon.compare import read_image
-from addon.paths import bundled_hdri
+from addon.blender import compat, renderer, scene_builder
+
+from addon.core.settings import MatrixSettings
+from addon.ui import register
+from addon.core.compare import read_image
+from addon.blender.paths import bundled_hdri
 
 W, H, PX_PER_M = 128, 64, 32.0
 CENTRES = {"principled": -1.0, "cook_torrance": 1.0}      # sphere centres (m) along X
@@ -19,7 +22,7 @@ RADIUS = 0.8
 def _scene():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.world = scene_builder.build_world(scene_builder.MatrixSettings(),
+    scene.world = scene_builder.build_world(MatrixSettings(),
                                             scene_builder.load_image(bundled_hdri("forest")))
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     cam.data.type = 'ORTHO'

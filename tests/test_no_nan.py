@@ -10,10 +10,11 @@ import pytest
 import bpy
 from mathutils import Vector
 
-from addon import materials, model_node, renderer, scene_builder
-from addon.compare import read_image
-from addon.hdri import write_float_exr
-from addon.params import MIN_ALPHA, VIEWS, ModelOptions
+from addon.blender import materials, model_node, renderer, scene_builder
+from addon.core.compare import read_image
+from addon.core.hdri import write_float_exr
+from addon.core.model import MIN_ALPHA, VIEWS, ModelOptions
+from addon.core.settings import MatrixSettings
 
 PEAK = 1.0e6
 BOUNDED = {  # view -> largest value the formulas allow
@@ -63,7 +64,7 @@ def _random_normals(tree, node):
 @pytest.mark.parametrize("shader", ["osl", "nodes"])
 def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spike_hdri, shader):
     rng = np.random.default_rng(7 if shader == "osl" else 8)
-    s = scene_builder.MatrixSettings(
+    s = MatrixSettings(
         rows=4, cols=4, width=32, height=32, hdri=str(spike_hdri), shader=shader,
         sun_strength=3.0, model=ModelOptions(ibl="reference" if shader == "osl" else "split_sum",
                                              env_samples=1))
@@ -85,7 +86,7 @@ def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spik
     for k, view in enumerate(VIEWS):
         model_node.set_option(node, "view", view)
         if shader == "osl":
-            materials.script_node(mat).inputs["Seed"].default_value = k
+            node.inputs["Seed"].default_value = k
         d = rng.normal(size=3)
         if k % 3 == 0:
             d[2] = -abs(d[2])                         # below the horizon

@@ -1,4 +1,4 @@
-"""The node group (node_groups/cook_torrance.toml, built by addon/node_group.py) against the
+"""The node group (node_groups/cook_torrance.toml, built by addon/blender/node_group.py) against the
 OSL shader: the same scene, every view, at pixel centres, rendered by Cycles with OSL off
 (SVM, the GPU path) for the group and on for the shader."""
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import render, sphere_pixels
-from addon import compat
-from addon.params import LIGHTING_VIEWS, TERM_VIEWS
+from addon.blender import compat
+from addon.core.model import LIGHTING_VIEWS, TERM_VIEWS
 
 ALL_VIEWS = TERM_VIEWS + LIGHTING_VIEWS
 # (model, the views it changes): the second case flips every switch
@@ -17,7 +17,7 @@ CASES = {
                                  units="unity", ibl="unity"),
                             ("NdotH", "G", "specular_brdf", "diffuse_brdf") + LIGHTING_VIEWS),
 }
-# no Sun shadow: the node group cannot trace one (SPEC "Lighting": it may skip the shadow)
+# no Sun shadow: the node group cannot trace one (docs/model.md "Lighting")
 SCENE = dict(grid=(3, 4), size=64, samples=1, pixel_centres=True, sun_shadow=False,
              albedo=(1.0, 0.766, 0.336), sun_to_light=(-0.3, -0.6, 0.74))
 
@@ -82,11 +82,12 @@ def _user_scene(tmp_path):
     """A scene a user might make, with no sphere matrix: a UV sphere, a camera, the world HDRI,
     and images for albedo and a tangent-space normal map."""
     import bpy
-    from addon import renderer, scene_builder
-    from addon.paths import bundled_hdri
+    from addon.blender import renderer, scene_builder
+    from addon.blender.paths import bundled_hdri
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    s = scene_builder.MatrixSettings(width=64, height=64)
+    from addon.core.settings import MatrixSettings
+    s = MatrixSettings(width=64, height=64)
     scene.world = scene_builder.build_world(s, scene_builder.load_image(bundled_hdri("forest")))
     bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.0)
     sphere = bpy.context.active_object
@@ -145,31 +146,29 @@ def _user_material(group, albedo, normal):
 def test_group_works_in_a_users_own_material(tmp_path):
     """The group in a user's material (textures and a normal map wired to it, no sphere
     matrix) renders the same views as the OSL shader given the same textures."""
-    from addon import ibl_bake, materials, node_group
-    from addon.compare import read_image
-    from addon.params import ModelOptions
-    from addon.paths import bundled_hdri
+    from addon.blender import materials, model_node, node_group
+    from addon.blender.paths import bundled_hdri
+    from addon.core import ibl_bake
+    from addon.core.compare import read_image
+    from addon.core.model import Lighting, ModelOptions
     scene, sphere, albedo, normal, renderer = _user_scene(tmp_path)
     bake = ibl_bake.bake(bundled_hdri("forest"))
     group = node_group.build_group()
     node_group.set_bake(group, bake)
     user, g = _user_material(group, albedo, normal)
-    lighting = materials.Lighting(sun_to_light=(-0.4, -0.6, 0.7), sun_irradiance=(2, 2, 2),
-                                  ibl_bake=str(bake))
-    materials.set_group_lighting(g, lighting)
-    osl = materials.cook_torrance_material("OSL twin", ModelOptions(ibl="split_sum"), lighting,
-                                           albedo=(0, 0, 0), metallic=0.3, smoothness=0.6,
-                                           albedo_image=albedo, normal_map=normal)
+    lighting = Lighting(sun_to_light=(-0.4, -0.6, 0.7), sun_irradiance=(2, 2, 2),
+                        ibl_bake=str(bake))
+    model_node.set_lighting(g, lighting)
+    osl = materials.model_material("OSL twin", "osl", ModelOptions(ibl="split_sum"), lighting,
+                                   albedo=(0, 0, 0), metallic=0.3, smoothness=0.6,
+                                   albedo_image=albedo, normal_map=normal)
     images = {}
     for name, mat, shader in (("nodes", user, "nodes"), ("osl", osl, "osl")):
         sphere.data.materials.clear()
         sphere.data.materials.append(mat)
         for view in ("albedo", "normal", "D", "indirect"):
             options = ModelOptions(view=view, ibl="split_sum", sun_shadow=False)
-            if shader == "nodes":
-                materials.set_group_options(g, options)
-            else:
-                materials.set_options(mat, options)
+            model_node.set_options(model_node.find(mat), options)
             renderer.configure(scene, shader, view, 1, pixel_centres=True)
             out = tmp_path / name / view
             renderer.render(scene, out, {}, log_path=tmp_path / "log.txt")
@@ -193,23 +192,24 @@ def test_drivers_keep_the_key_light_in_sync_with_the_sun(tmp_path):
     next render: NdotL follows the Sun's new +Z axis, direct diffuse its strength."""
     import bpy
     from mathutils import Vector
-    from addon import renderer, scene_builder
-    from addon.compare import read_image
-    from addon.params import ModelOptions
+    from addon.blender import model_node, renderer, scene_builder
+    from addon.core.compare import read_image
+    from addon.core.model import ModelOptions
+    from addon.core.settings import MatrixSettings
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    s = scene_builder.MatrixSettings(rows=1, cols=2, width=48, height=48, shader="nodes",
-                                     model=ModelOptions(view="NdotL", ibl="split_sum"))
+    s = MatrixSettings(rows=1, cols=2, width=48, height=48, shader="nodes",
+                       model=ModelOptions(view="NdotL", ibl="split_sum"))
     described = scene_builder.build_matrix(scene, s)
     sun = next(o for o in scene.objects if o.type == 'LIGHT')
     new_dir = Vector((0.6, -0.5, 0.3)).normalized()
     sun.rotation_quaternion = new_dir.to_track_quat('Z', 'Y')
     sun.data.energy = 3.0
-    from addon import materials
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
+    node = model_node.find(mat)
     images = {}
     for view in ("NdotL", "normal"):
-        materials.set_group_options(materials.group_node(mat), ModelOptions(view=view, ibl="split_sum"))
+        model_node.set_options(node, ModelOptions(view=view, ibl="split_sum"))
         renderer.configure(scene, "nodes", view, 1)
         renderer.render(scene, tmp_path / view, {}, log_path=tmp_path / "log.txt")
         images[view] = read_image(tmp_path / view / "render.exr")
@@ -218,7 +218,6 @@ def test_drivers_keep_the_key_light_in_sync_with_the_sun(tmp_path):
         m |= sphere_pixels(described, cell)
     want = np.clip(images["normal"][m] @ np.array(new_dir), 0, 1)
     np.testing.assert_allclose(images["NdotL"][m][:, 0], want, atol=1e-5)
-    node = materials.group_node(mat)
     irr = tuple(node.inputs["Sun Irradiance"].default_value)[:3]
     assert irr == pytest.approx((3.0, 3.0, 3.0))       # the driver wrote the new strength
 

@@ -5,8 +5,8 @@ import numpy as np
 
 from conftest import render, sphere_pixels
 from reference_model import specular_albedo
-from addon.compare import ciede2000, read_image, srgb_to_lab
-from addon.params import REC709_LUMINANCE
+from addon.core.compare import ciede2000, read_image, srgb_to_lab
+from addon.core.model import REC709_LUMINANCE
 
 A = (0.9, 0.5, 0.2)
 WHITE = dict(grid=(3, 3), size=96, samples=1, sun_strength=0.0, albedo=A, pixel_centres=True)
@@ -44,7 +44,7 @@ def test_unity_mode_in_a_white_furnace_is_unitys_formula(tmp_path, uniform_hdri)
 
 def test_split_sum_in_a_white_furnace_is_the_directional_albedo(tmp_path, uniform_hdri):
     """Every level is 1: indirect specular = specColor A + B, the directional albedo of f_s,
-    here against brute-force quadrature of SPEC's f_s; indirect diffuse = diffColor times
+    here against brute-force quadrature of the model's f_s; indirect diffuse = diffColor times
     the cosine-weighted mean of Burley's factor (1 for Lambert). 1% covers the bilinear
     lookup between table texels."""
     views = ("indirect_specular", "indirect_diffuse", "normal")

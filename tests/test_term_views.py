@@ -1,4 +1,4 @@
-"""Every term view equals the SPEC formulas, computed independently in numpy at every sphere
+"""Every term view equals the model's formulas (docs/model.md), computed independently in numpy at every sphere
 pixel from the rendered normal and scene.json's directions (1e-4 relative or 1e-6 absolute)."""
 
 import numpy as np

@@ -9,7 +9,12 @@ import bpy
 import pytest
 from mathutils import Vector
 
-from addon import compat, convert, model_node, operators, preferences, register, ui
+from addon.blender import compat, convert, model_node
+
+
+# ----------------------------------------------------------------------------------------
+
+from addon.ui import operators, preferences, register, panels as ui
 
 
 # ----------------------------------------------------------------------------------------
@@ -412,7 +417,7 @@ def test_render_comparison_in_the_background(addon, tmp_path):
     run_until(lambda: (out / "cook_torrance" / "scene.json").is_file())
     assert bpy.ops.ctlab.cancel_comparison() == {'FINISHED'}
     run_until(lambda: operators.JOBS["comparison"].state == "cancelled", limit=60)
-    from addon.compare import read_image
+    from addon.core.compare import read_image
     assert read_image(out / "cook_torrance" / "render.exr").shape == (32, 32, 3)
     assert not (out / "report.html").exists()
     leftovers = [p.name for p in out.rglob("*") if "partial" in p.name or p.name.startswith(".")]

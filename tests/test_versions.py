@@ -1,4 +1,4 @@
-"""What differs between the Blender versions the add-on supports (addon/compat.py), measured on
+"""What differs between the Blender versions the add-on supports (addon/blender/compat.py), measured on
 the running one, and renders that may crash Blender run in child processes: a segmentation
 fault fails a test instead of killing the test run."""
 
@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from addon import compat, env_importance, ibl_bake
+from addon.blender import compat
+from addon.core import env_importance, ibl_bake
 
 SHADER = (ROOT / "osl" / "cook_torrance.osl").read_text()
 
@@ -44,8 +45,9 @@ def test_osl_texture_convention_is_what_compat_says(tmp_path):
         import bpy
         bpy.utils.expose_bundled_modules()
         import numpy as np
-        from addon import compare, renderer
-        from addon.hdri import write_float_exr
+        from addon.core import compare
+        from addon.blender import renderer
+        from addon.core.hdri import write_float_exr
         grid = np.zeros((4, 8, 3), np.float32)
         grid[..., 0] = np.arange(8)[None, :]            # R: the column
         grid[..., 1] = np.arange(4)[:, None]            # G: the row, 0 = the file's first
@@ -103,6 +105,7 @@ def _define(name: str) -> int:
     return int(match[1])
 
 
+@pytest.mark.quick
 def test_the_shaders_table_sizes_are_the_add_ons():
     """The shader reads the tables at texel centres of sizes it names itself; they must be
     the sizes the add-on writes (a table of another size would be read between texels)."""
@@ -116,6 +119,7 @@ def test_the_shaders_table_sizes_are_the_add_ons():
     assert _define("IRRADIANCE_WIDTH") == ibl_bake.IRRADIANCE_WIDTH
 
 
+@pytest.mark.quick
 def test_the_shader_avoids_what_crashes_or_misreads_on_some_version():
     """gettextureinfo() crashes Cycles 5.2 while it optimises the shader; a texture() whose file
     name varies while shading (format() of a varying level) reads no image there; only

@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import bpy
 
-from . import light_sync, operators, osl_shader, preferences, properties, ui
+from . import operators, panels, preferences, properties
+from ..blender import light_sync, osl_shader
 
-CLASSES = (preferences.CTLAB_AddonPreferences,) + operators.CLASSES + ui.PANELS
+CLASSES = (preferences.CTLAB_AddonPreferences,) + operators.CLASSES + panels.PANELS
 
 
 def register():
@@ -19,7 +20,7 @@ def register():
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     properties.register()
-    for menu, draw in ui.MENU_ENTRIES:
+    for menu, draw in panels.MENU_ENTRIES:
         getattr(bpy.types, menu).append(draw)
     light_sync.register_handler()
 
@@ -27,7 +28,7 @@ def register():
 def unregister():
     operators.stop_jobs()
     light_sync.unregister_handler()
-    for menu, draw in ui.MENU_ENTRIES:
+    for menu, draw in panels.MENU_ENTRIES:
         getattr(bpy.types, menu).remove(draw)
     properties.unregister()
     for cls in reversed(CLASSES):

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import bpy
 
-from .errors import UserError
+from ..core.errors import UserError
 
 
 def expose_bundled_modules() -> None:

@@ -32,17 +32,16 @@ a circular convolution along the row, done with real FFTs.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .errors import UserError
+from .cache import cache_dir
+from .files import atomic_folder, check_writable, copy_file, write_json
 from .hdri import file_hash, load_hdri, write_float_exr
-from .params import G_MODELS, MIN_ALPHA
-from .paths import atomic_folder, cache_dir
+from .model import G_MODELS, MIN_ALPHA
 
 VERSION = 3
 LEVEL_COUNT = 7
@@ -177,10 +176,6 @@ def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) ->
 
 # ---------------------------------------------------------------------------------------
 # The DFG table (independent of the HDRI: cached once per model version)
-
-def _alpha(pr):
-    return np.maximum(pr * pr, MIN_ALPHA)
-
 
 def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int):
     """A(n.v), B(n.v) at one perceptual roughness: integral f_s (n.l) dl = F0 A + B.
@@ -331,7 +326,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
                             "first): pr = j/(N-1); look up at ((x (N-1) + 0.5)/N)",
                 "dfg_channels": ["A (specColor scale)", "B (bias)", "Disney diffuse factor"],
                 "seconds": round(time.perf_counter() - start, 3), "timings": timings}
-        (stage / INFO_FILE).write_text(json.dumps(info, indent=2))
+        write_json(stage / INFO_FILE, info)
 
     atomic_folder(folder, fill)
     _report(progress, 1.0, f"baked in {time.perf_counter() - start:.2f} s: {folder}")
@@ -340,9 +335,6 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
 
 def export(folder: Path, out_dir: Path) -> None:
     """Copy a bake folder's files into out_dir, each whole or not at all."""
-    from .renderer import check_writable
     out_dir = check_writable(out_dir)
     for f in sorted(Path(folder).iterdir()):
-        tmp = out_dir / f".{f.name}.partial"
-        shutil.copyfile(f, tmp)
-        tmp.replace(out_dir / f.name)
+        copy_file(f, out_dir / f.name)

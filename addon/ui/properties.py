@@ -12,8 +12,8 @@ from __future__ import annotations
 import bpy
 from bpy.props import EnumProperty, FloatProperty, PointerProperty, StringProperty
 
-from . import model_node
-from .params import IBL_LABELS
+from ..blender import model_node
+from ..core.model import IBL_LABELS, OPTION_VALUES
 
 _LABELS = {"cook_torrance": "Cook-Torrance", "smith_ggx_correlated": "Smith (height-correlated)",
            "disney": "Disney", "lambert": "Lambert", "physical": "Physical", "unity": "Unity",
@@ -28,7 +28,7 @@ def label(value: str) -> str:
 
 
 def _items(key):
-    return tuple((v, label(v), "") for v in model_node.OPTIONS[key])
+    return tuple((v, label(v), "") for v in OPTION_VALUES[key])
 
 
 # EnumProperty items must be module-level (the annotations below are evaluated lazily).
@@ -36,25 +36,25 @@ VIEW_ITEMS = _items("view")
 G_ITEMS = _items("g_model")
 DIFFUSE_ITEMS = _items("diffuse_model")
 UNITS_ITEMS = _items("units")
-IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in model_node.OPTIONS["ibl"])
+IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in OPTION_VALUES["ibl"])
 
 
 def _option_property(key: str, name: str, items, description: str):
-    values = model_node.OPTIONS[key]
+    values = OPTION_VALUES[key]
 
     def get(mat):
         node = model_node.find(mat)
         return values.index(model_node.get_option(node, key)) if node is not None else 0
 
     def set_(mat, index):
-        from .errors import UserError
+        from ..core.errors import UserError
         node = model_node.find(mat)
         if node is None:
             return
         try:
             model_node.set_option(node, key, values[index])
             if key == "ibl":
-                from . import light_sync
+                from ..blender import light_sync
                 light_sync.update_environment(node, bpy.context.scene)
         except UserError as exc:           # a setter cannot report: the console, and no change
             print(f"Cook-Torrance Lab: {exc}")
@@ -67,7 +67,7 @@ def _sun_poll(self, obj):
 
 
 def _sun_changed(scene, context):
-    from . import light_sync
+    from ..blender import light_sync
     for mat, _ in model_node.model_materials():
         if not mat.get("ctlab_matrix"):
             light_sync.sync_material(mat, scene, environment=False)

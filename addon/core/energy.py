@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .params import ModelOptions
+from .model import ModelOptions
 
 ROWS = 6                          # smoothness 1, 0.8, ... 0
 BINS = 9                          # view-angle bins of 10 degrees
@@ -25,8 +25,8 @@ WIDTH, HEIGHT = 64, 64 * ROWS
 
 def white_world() -> Path:
     """A uniform world of radiance 1 (kept in the cache)."""
+    from .cache import cache_dir
     from .hdri import write_float_exr
-    from .paths import cache_dir
     path = cache_dir() / "white-furnace.exr"
     if not path.is_file():
         write_float_exr(path, np.ones((32, 64, 3), dtype=np.float32))
@@ -34,7 +34,7 @@ def white_world() -> Path:
 
 
 def furnace_settings(g_model: str, env_samples: int = 4, seed: int = 0):
-    from .scene_builder import MatrixSettings
+    from .settings import MatrixSettings
     return MatrixSettings(rows=ROWS, cols=1, width=WIDTH, height=HEIGHT, hdri=str(white_world()),
                           sun_strength=0.0, metallic=1.0, albedo=(1.0, 1.0, 1.0),
                           mutual_shadows=False, shader="osl",

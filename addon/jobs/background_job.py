@@ -1,21 +1,21 @@
 """The batch comparison (``ctlab matrix``) run in a separate process, so Blender's interface
-stays responsive: its progress lines ("[k/n] ...") are read on a thread, ``poll`` reports the
-fraction done, ``cancel`` stops it between two renders.
+stays responsive: the child reports its pipeline's events as JSON lines ($CTLAB_JSON_EVENTS),
+read on a thread; ``poll`` reports the fraction done, ``cancel`` stops it between two renders.
 
 The child is Blender itself in background mode (``blender -b --factory-startup``) or, for
 Blender as a Python module, the same Python interpreter. It imports this package under a
 private name from its folder, so an installed extension and a checkout both work. Every
 render folder is written whole (renderer.render renames finished files into place). Cancel is
 cooperative: the parent creates the file named by $CTLAB_CANCEL_FILE, which the command line
-checks between steps (cli.check_cancelled), so a cancelled job keeps every finished output and
+checks between steps (pipeline.Events.cancelled), so a cancelled job keeps every finished output and
 leaves no partial file. (A SIGTERM handler in the child was not run while Blender rendered:
 the job went on to the end.) A child that has not stopped KILL_AFTER seconds later is killed.
 """
 
 from __future__ import annotations
 
+import json
 import os
-import re
 import subprocess
 import sys
 import tempfile
@@ -25,9 +25,8 @@ from pathlib import Path
 
 import bpy
 
-from .paths import PACKAGE_ROOT
-
-_STEP = re.compile(r"\[(\d+)/(\d+)\]\s*(.*)")
+from ..core.cache import cache_dir
+from ..core.files import PACKAGE_ROOT
 
 # The child's program: import the package from its folder and run the command line.
 _CHILD = """
@@ -38,7 +37,7 @@ pkg = importlib.util.module_from_spec(spec)
 sys.modules["ctlab_job"] = pkg
 import bpy
 getattr(bpy.utils, "expose_bundled_modules", lambda: None)()
-from ctlab_job.addon.cli import main
+from ctlab_job.addon.jobs.cli import main
 sys.stdout.flush()
 sys.exit(main({argv!r}))
 """
@@ -65,7 +64,9 @@ class Job:
         self.lines: list = []
         self.cancel_file = Path(tempfile.gettempdir()) / f"ctlab-cancel-{os.getpid()}-{id(self)}"
         self.cancel_file.unlink(missing_ok=True)
-        env = dict(os.environ, PYTHONUNBUFFERED="1", CTLAB_CANCEL_FILE=str(self.cancel_file))
+        # the child uses the add-on's cache folder (it has no preferences to read it from)
+        env = dict(os.environ, PYTHONUNBUFFERED="1", CTLAB_CANCEL_FILE=str(self.cancel_file),
+                   CTLAB_JSON_EVENTS="1", CTLAB_CACHE=str(cache_dir()))
         self.process = subprocess.Popen(child_command(argv), stdout=subprocess.PIPE,
                                         stderr=subprocess.STDOUT, text=True, env=env)
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -75,11 +76,16 @@ class Job:
         for line in self.process.stdout:
             line = line.rstrip()
             self.lines.append(line)
-            match = _STEP.search(line)
-            if match:
-                k, n, text = int(match[1]), int(match[2]), match[3]
+            event = None
+            if line.startswith("{"):
+                try:
+                    event = json.loads(line)
+                except ValueError:
+                    pass
+            if isinstance(event, dict) and event.get("event") == "progress":
+                k, n = int(event["step"]), int(event["total"])
                 self.fraction = (k - 1) / n
-                self.message = f"{k}/{n}: {text.split(':')[0]}"
+                self.message = f"{k}/{n}: {str(event['message']).split(':')[0]}"
             elif line.startswith("ctlab: error:"):
                 self.message = line[len("ctlab: error:"):].strip()
 

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import bpy
 
-from .errors import UserError
-from .paths import OSL_DIR
+from ..core.errors import UserError
+from ..core.files import OSL_DIR
 
 SHADER_FILE = OSL_DIR / "cook_torrance.osl"
 TEXT_NAME = "ctlab_cook_torrance.osl"
@@ -66,8 +66,8 @@ def set_environment(node: bpy.types.ShaderNodeScript, hdri, bake=None) -> None:
     """Point the shader at the world's HDRI file and, when given, its split-sum bake folder;
     also its width in texels, which the shader needs to filter lat-long images near their
     edges (the bake's level 0 is the HDRI itself, so either file tells it)."""
-    from .hdri import image_width
-    from .ibl_bake import level_file
+    from ..core.hdri import image_width
+    from ..core.ibl_bake import level_file
     socket(node, "hdri").default_value = str(hdri) if hdri else ""
     if bake is not None:
         socket(node, "ibl_bake").default_value = str(bake)

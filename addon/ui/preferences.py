@@ -10,8 +10,7 @@ from __future__ import annotations
 import bpy
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
-# The extension's package (bl_ext.<repo>.cook_torrance_lab), which names the preferences.
-PACKAGE = __package__.rpartition(".")[0] or __package__
+from ..blender.paths import PACKAGE, preferences
 
 IMPLEMENTATION_ITEMS = (
     ("nodes", "Node Group", "The shader-node group: Cycles (CPU or GPU, SVM or OSL) and EEVEE"),
@@ -57,8 +56,4 @@ class _Defaults:
 
 def get():
     """The preferences, or their defaults when the add-on is not enabled under its name."""
-    try:
-        addon = bpy.context.preferences.addons.get(PACKAGE)
-    except AttributeError:
-        addon = None
-    return addon.preferences if addon is not None and addon.preferences is not None else _Defaults
+    return preferences() or _Defaults

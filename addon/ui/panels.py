@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import bpy
 
-from . import convert, light_sync, model_node
+from ..blender import convert, light_sync, model_node
 from .operators import (CTLAB_OT_add_node_group, CTLAB_OT_add_texture,
                         CTLAB_OT_bake_environment, CTLAB_OT_build_sphere_matrix,
                         CTLAB_OT_cancel_comparison, CTLAB_OT_convert_to_cook_torrance,
                         CTLAB_OT_convert_to_principled, CTLAB_OT_new_material,
                         CTLAB_OT_render_comparison, CTLAB_OT_set_view_all,
                         CTLAB_OT_switch_implementation, CTLAB_OT_sync_lighting, JOBS)
-from .params import ggx_alpha, perceptual_roughness
+from ..core.model import ggx_alpha, perceptual_roughness
 
 
 def _source_label(sock: bpy.types.NodeSocket) -> str:

@@ -2,8 +2,9 @@
 
 The description is data: frames of named nodes written as nested calls (see the file's header).
 This module parses each expression into Blender shader nodes, wires them, puts each frame's
-nodes into a frame named after the term, and selects the view with the View input. The baked
-split-sum files (addon/ibl_bake.py) are loaded as images by ``set_bake``.
+nodes into a frame named after the term, and selects the view with the View input. The group's
+sockets are the model's interface (core.model.GROUP_INPUTS). The baked split-sum files
+(core/ibl_bake.py) are loaded as images by ``set_bake``.
 """
 
 from __future__ import annotations
@@ -14,22 +15,16 @@ from pathlib import Path
 
 import bpy
 
-from .errors import UserError
-from .ibl_bake import DFG_SIZE, LEVEL_COUNT
-from .params import BAKED_IBL_MODES, VIEWS
-from .paths import PACKAGE_ROOT
+from ..core.errors import UserError
+from ..core.files import NODE_GROUPS_DIR
+from ..core.ibl_bake import DFG_SIZE, LEVEL_COUNT
+from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, VIEWS
 
-DESCRIPTION = PACKAGE_ROOT / "node_groups" / "cook_torrance.toml"
+DESCRIPTION = NODE_GROUPS_DIR / "cook_torrance.toml"
 TAG = "ctlab_node_group"
 BAKE_FILE = "ctlab_bake_file"           # texture nodes: which baked file they read
 BAKE_DIM = "ctlab_bake_dim"             # value nodes: that file's width or height
 
-
-def require_baked_ibl(ibl: str) -> None:
-    """The group reads its indirect light from the bake: it cannot integrate an HDRI."""
-    if ibl not in BAKED_IBL_MODES:
-        raise UserError(f"the node group has no {ibl!r} indirect light (it cannot integrate an "
-                        f"HDRI); use one of: {', '.join(BAKED_IBL_MODES)}")
 
 SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "NodeSocketColor",
                 "VECTOR": "NodeSocketVector", "SHADER": "NodeSocketShader"}
@@ -286,18 +281,22 @@ class _Builder:
         return total
 
 
-def _interface(group, data):
+def _interface(group):
+    """The group's sockets: the model's interface (core.model), in its order."""
     group.interface.clear()
-    for name, kind, default, lo, hi, tip in data["group"]["inputs"]:
-        sock = group.interface.new_socket(name, in_out='INPUT', socket_type=SOCKET_TYPES[kind])
-        sock.description = tip
-        if kind in ("FLOAT", "INT"):
-            sock.default_value, sock.min_value, sock.max_value = default, lo, hi
+    for i in GROUP_INPUTS:
+        sock = group.interface.new_socket(i.group, in_out='INPUT',
+                                          socket_type=SOCKET_TYPES[i.kind])
+        sock.description = i.tooltip
+        if i.kind in ("FLOAT", "INT"):
+            cast = int if i.kind == "INT" else float
+            sock.default_value, sock.min_value, sock.max_value = \
+                cast(i.default), cast(i.min), cast(i.max)
         else:
-            sock.default_value = default
-        if name == "Normal":
+            sock.default_value = i.default
+        if i.key == "normal":
             sock.hide_value = True
-    for name, kind in data["group"]["outputs"]:
+    for name, kind in GROUP_OUTPUTS:
         group.interface.new_socket(name, in_out='OUTPUT', socket_type=SOCKET_TYPES[kind])
 
 
@@ -312,7 +311,7 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     group[TAG] = True
     group.description = data["group"]["description"]
     group.nodes.clear()
-    _interface(group, data)
+    _interface(group)
     b = _Builder(group, data)
     b.group_in.location = (-600, 0)
     # the views, selected by the View input: sum over k of (View == k) x view_k
@@ -343,7 +342,8 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
     """The node group, reused when it was built from the current description (rebuilding
     would reset the inputs and links of every material using it), else built."""
     import hashlib
-    digest = hashlib.sha256(DESCRIPTION.read_bytes()).hexdigest()[:16]
+    digest = hashlib.sha256(DESCRIPTION.read_bytes() + repr(GROUP_INPUTS).encode()
+                            ).hexdigest()[:16]
     group = bpy.data.node_groups.get(load_description()["group"]["name"])
     if group is not None and group.get(TAG) and group.get(SOURCE_HASH) == digest:
         return group

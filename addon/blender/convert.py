@@ -1,6 +1,6 @@
 """Conversion between Principled BSDF and the Cook-Torrance model in a user's material.
 
-SPEC "Principled BSDF reference mapping", both ways: Base Color <-> albedo, Metallic <->
+docs/model.md, "The comparison with Principled BSDF", both ways: Base Color <-> albedo, Metallic <->
 metallic, Roughness <-> 1 - smoothness, Normal <-> normal. Links are kept (an image texture
 stays wired; a linked Roughness gets a "1 - x" Math node, which the way back removes again),
 values are copied. What the other side cannot express is reported, never silently dropped:
@@ -12,7 +12,8 @@ from __future__ import annotations
 import bpy
 
 from . import light_sync, model_node
-from .errors import UserError
+from ..core.errors import UserError
+from ..core.model import OPTION_VALUES
 
 INVERT_TAG = "ctlab_one_minus"          # the Math node: smoothness = 1 - roughness (or back)
 SAVED_EMISSION_SAMPLING = "ctlab_saved_emission_sampling"
@@ -135,7 +136,7 @@ def model_to_principled(mat: bpy.types.Material) -> list:
     tree = mat.node_tree
     notes = [f"{key.replace('_', ' ')} {model_node.get_option(node, key)}"
              for key in ("view", "g_model", "diffuse_model", "units")
-             if model_node.get_option(node, key) != model_node.OPTIONS[key][0]]
+             if model_node.get_option(node, key) != OPTION_VALUES[key][0]]
     bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.location = node.location
     bsdf.distribution = 'MULTI_GGX'
@@ -158,7 +159,7 @@ def model_to_principled(mat: bpy.types.Material) -> list:
             tree.links.new(source, bsdf.inputs["Normal"])
     for link in list(model_node.shader_output(node).links):
         tree.links.new(bsdf.outputs["BSDF"], link.to_socket)
-    light_sync.remove_drivers(tree, node)
+    model_node.remove_drivers(tree, node)
     tree.nodes.remove(node)
     mat.cycles.emission_sampling = mat.pop(SAVED_EMISSION_SAMPLING, 'AUTO')
     return notes

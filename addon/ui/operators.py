@@ -12,11 +12,14 @@ from mathutils import Vector
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, StringProperty)
 
-from . import light_sync, model_node, preferences
-from .errors import UserError
-from .params import IBL_LABELS, IBL_MODES, MATRIX_ALBEDO, ModelOptions
+from . import preferences
 from .properties import VIEW_ITEMS
-from .scene_builder import MAX_GRID, SHADERS, MatrixSettings, build_matrix
+from ..blender import light_sync, model_node
+from ..blender.drivers import world_nodes
+from ..blender.scene_builder import build_matrix
+from ..core.errors import UserError
+from ..core.model import IBL_LABELS, IBL_MODES, MATRIX_ALBEDO, ModelOptions
+from ..core.settings import MAX_GRID, SHADERS, MatrixSettings
 
 _DEFAULTS = MatrixSettings()
 _IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in IBL_MODES)
@@ -100,14 +103,15 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
 
     def execute(self, context):
         ibl = "split_sum" if self.shader == "nodes" and self.ibl == "reference" else self.ibl
-        settings = MatrixSettings(
-            rows=self.rows, cols=self.cols, spacing=self.spacing, albedo=tuple(self.albedo),
-            hdri=bpy.path.abspath(self.hdri) if self.hdri else _default_hdri(),
-            hdri_strength=self.hdri_strength, hdri_rotation=math.degrees(self.hdri_rotation),
-            sun_to_light=tuple(self.sun_direction), sun_strength=self.sun_strength,
-            shader=self.shader, width=self.resolution, height=self.resolution,
-            model=ModelOptions(view=self.view, ibl=ibl))
         try:
+            settings = MatrixSettings(
+                rows=self.rows, cols=self.cols, spacing=self.spacing, albedo=tuple(self.albedo),
+                hdri=bpy.path.abspath(self.hdri) if self.hdri else _default_hdri(),
+                hdri_strength=self.hdri_strength,
+                hdri_rotation=math.degrees(self.hdri_rotation),
+                sun_to_light=tuple(self.sun_direction), sun_strength=self.sun_strength,
+                shader=self.shader, width=self.resolution, height=self.resolution,
+                model=ModelOptions(view=self.view, ibl=ibl))
             with _progress(context) as progress:
                 build_matrix(context.scene, settings, progress)
         except UserError as exc:
@@ -135,8 +139,8 @@ class CTLAB_OT_bake_environment(bpy.types.Operator):
                                          "Texture, else Blender's bundled forest.exr")
 
     def execute(self, context):
-        from . import ibl_bake
-        from .paths import bundled_hdri
+        from ..core import ibl_bake
+        from ..blender.paths import bundled_hdri
         path = (bpy.path.abspath(self.filepath) if self.filepath
                 else light_sync.world_hdri_path(context.scene)) or _default_hdri() \
             or str(bundled_hdri("forest"))
@@ -180,14 +184,12 @@ class CTLAB_OT_new_material(bpy.types.Operator):
         impl = _implementation(self.implementation)
         mat = bpy.data.materials.new("Cook-Torrance")
         try:
-            from .compat import use_nodes
+            from ..blender.compat import use_nodes
             use_nodes(mat)
             tree = mat.node_tree
             tree.nodes.clear()
             node = model_node.new_node(tree, impl)
-            out = tree.nodes.new("ShaderNodeOutputMaterial")
-            out.location = (400, 0)
-            tree.links.new(model_node.shader_output(node), out.inputs["Surface"])
+            model_node.connect_output(tree, node)
             model_node.link_geometry_normal(tree, node)
             if impl == "nodes":
                 model_node.set_option(node, "ibl", "split_sum")
@@ -361,7 +363,7 @@ class CTLAB_OT_convert_to_cook_torrance(_Convert, bpy.types.Operator):
                                  default="PREFERENCES")
 
     def convert(self, context, mat):
-        from .convert import principled_to_model
+        from ..blender.convert import principled_to_model
         return principled_to_model(mat, context.scene, _implementation(self.implementation))
 
 
@@ -374,7 +376,7 @@ class CTLAB_OT_convert_to_principled(_Convert, bpy.types.Operator):
     scope: EnumProperty(name="Materials", items=_SCOPE_ITEMS, default="ACTIVE")
 
     def convert(self, context, mat):
-        from .convert import model_to_principled
+        from ..blender.convert import model_to_principled
         return model_to_principled(mat)
 
 
@@ -406,10 +408,9 @@ class CTLAB_OT_sync_lighting(bpy.types.Operator):
         count = 0
         env = light_sync.Environment(context.scene)
         try:
-            for mat, _node in list(model_node.model_materials()):
-                if not mat.get("ctlab_matrix"):
-                    light_sync.sync_material(mat, context.scene, env=env)
-                    count += 1
+            for mat, _node in light_sync.user_materials():
+                light_sync.sync_material(mat, context.scene, env=env)
+                count += 1
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
@@ -448,7 +449,7 @@ def _job_tick():
 def default_comparison_folder() -> str:
     if bpy.data.filepath:
         return "//ctlab_comparison"
-    from .paths import cache_dir
+    from ..core.cache import cache_dir
     return str(cache_dir().parent / "comparison")
 
 
@@ -470,8 +471,9 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
     open_report: BoolProperty(name="Open Report", default=True)
 
     def execute(self, context):
-        from . import background_job
-        from .renderer import check_writable
+        from ..core.files import check_writable
+        from ..jobs import background_job
+        from ..jobs.cli import argv as job_argv
         running = JOBS.get("comparison")
         if running is not None and running.poll() in ("running", "cancelling"):
             self.report({'ERROR'}, "a comparison is already running; cancel it first")
@@ -479,26 +481,24 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
         out = Path(bpy.path.abspath(self.directory or default_comparison_folder()))
         scene = context.scene
         hdri = light_sync.world_hdri_path(scene) or _default_hdri()
-        argv = ["matrix", "--out", str(out), "--grid", f"{self.rows}x{self.cols}",
-                "--size", str(self.size),
-                "--samples", str(self.samples or preferences.get().samples)]
+        values = dict(grid=f"{self.rows}x{self.cols}", size=self.size,
+                      samples=self.samples or preferences.get().samples)
         if hdri:
-            argv += ["--hdri", hdri]
-        background, mapping = light_sync.world_nodes(scene.world)
+            values["hdri"] = hdri
+        background, mapping = world_nodes(scene.world)
         if background is not None and hdri:
-            argv += ["--hdri-strength", f"{background.inputs['Strength'].default_value:.6g}"]
+            values["hdri_strength"] = background.inputs['Strength'].default_value
         if mapping is not None and hdri:
-            argv += ["--hdri-rotation",
-                     f"{math.degrees(mapping.inputs['Rotation'].default_value[2]):.6g}"]
+            values["hdri_rotation"] = math.degrees(mapping.inputs['Rotation'].default_value[2])
         sun = light_sync.key_sun(scene)
         if sun is not None:
-            z = sun.matrix_world.to_quaternion() @ Vector((0.0, 0.0, 1.0))
-            argv += ["--sun-dir", ",".join(f"{c:.6g}" for c in z),
-                     "--sun-strength", f"{sun.data.energy:.6g}"]
+            values["sun_dir"] = tuple(sun.matrix_world.to_quaternion() @ Vector((0.0, 0.0, 1.0)))
+            values["sun_strength"] = sun.data.energy
+        argv = job_argv("matrix", "--out", out, **values)
         try:
             check_writable(out)
             if hdri:
-                from .hdri import load_hdri
+                from ..core.hdri import load_hdri
                 load_hdri(Path(hdri))
         except UserError as exc:
             self.report({'ERROR'}, str(exc))

@@ -18,8 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
+from .files import atomic_path, check_writable, write_json
 from .hdri import oiio
-from .params import REC709_LUMINANCE
+from .model import REC709_LUMINANCE
 
 CELL_FRACTION = 0.95
 
@@ -39,10 +40,9 @@ def write_png(path: Path, rgb01: np.ndarray) -> None:
     h, w, _ = rgb01.shape
     buf = OIIO.ImageBuf(OIIO.ImageSpec(w, h, 3, OIIO.UINT8))
     buf.set_pixels(OIIO.ROI(0, w, 0, h, 0, 1, 0, 3), np.clip(rgb01, 0, 1).astype(np.float32))
-    tmp = path.with_name(path.name + ".partial.png")
-    if not buf.write(str(tmp)):
-        raise UserError(f"cannot write {path}: {buf.geterror().strip()}")
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        if not buf.write(str(tmp)):
+            raise UserError(f"cannot write {path}: {buf.geterror().strip()}")
 
 
 # --- Colour science -------------------------------------------------------------------
@@ -147,7 +147,6 @@ def load_render(folder: Path):
 
 def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
     """Write metrics.json and diff.png (CIEDE2000 heat map) into out_dir; return the metrics."""
-    from .renderer import check_writable
     lin_a, disp_a, scene_a = load_render(dir_a)
     lin_b, disp_b, scene_b = load_render(dir_b)
     if lin_a.shape != lin_b.shape:
@@ -170,7 +169,5 @@ def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
               "overall": metrics(lin_a, lin_b, disp_a, disp_b, de, all_mask),
               "heatmap_max_ciede2000": 10.0, "cells": cells}
     write_png(out_dir / "diff.png", heatmap(de))
-    tmp = out_dir / "metrics.json.partial"
-    tmp.write_text(json.dumps(result, indent=2))
-    tmp.replace(out_dir / "metrics.json")
+    write_json(out_dir / "metrics.json", result)
     return result

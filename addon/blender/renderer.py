@@ -1,10 +1,12 @@
-"""Rendering a scene with headless Cycles and writing render.exr, render.png and scene.json.
+"""Rendering a scene headless (Cycles, or EEVEE for the node group) and writing render.exr,
+render.png and scene.json.
 
 - The EXR holds the raw float view values (RGB, 32-bit, scene-linear).
 - The PNG is for people: Standard view transform for term views, AgX for lighting views.
 - Term views are rendered at pixel centres with no filter jitter (a box filter of width 0.01
   puts every sample at the pixel centre), one sample: each pixel is one exact shading point.
-- Outputs are written to temporary names and renamed when all are whole.
+- The three outputs are written to temporary names and renamed when all are whole
+  (core.files.atomic_paths).
 """
 
 from __future__ import annotations
@@ -13,22 +15,21 @@ import contextlib
 import json
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import bpy
 
-from .errors import UserError
-from .params import AGX_VIEWS, EXACT_VIEWS
+from .compat import eevee_engine_id
+from ..core.errors import UserError
+from ..core.files import atomic_paths, check_writable
+from ..core.model import AGX_VIEWS, EXACT_VIEWS
 
 OUTPUT_FILES = ("render.exr", "render.png", "scene.json")
 
 
 ENGINES = ("cycles", "eevee")
 
-
-from .compat import eevee_engine_id  # noqa: E402,F401  (BLENDER_EEVEE_NEXT before 5.0)
 
 
 def configure_eevee(scene: bpy.types.Scene, view: str, samples: int, pixel_centres: bool) -> None:
@@ -105,19 +106,6 @@ def quiet(log_path: Path | None):
             os.close(saved)
 
 
-def check_writable(out_dir: Path) -> Path:
-    """Create the output folder if needed and prove it is writable, before any work."""
-    out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".ctlab-probe-"):
-            pass
-    except OSError as exc:
-        raise UserError(f"output folder not writable: {out_dir} ({exc.strerror or exc}); "
-                        "choose another --out") from None
-    return out_dir
-
-
 def _save(scene, image, path: Path, fmt: str) -> None:
     settings = scene.render.image_settings
     if fmt == "exr":
@@ -144,7 +132,7 @@ def _seconds(stamp: str) -> float:
 def cycles_times(exr_path: Path) -> dict:
     """Cycles' own synchronisation (scene and shader compile) and render times, from the
     metadata it writes into the image."""
-    from .hdri import oiio
+    from ..core.hdri import oiio
     OIIO = oiio()
     inp = OIIO.ImageInput.open(str(exr_path))
     if inp is None:
@@ -173,27 +161,15 @@ def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=No
     result = bpy.data.images.get("Render Result")
     if result is None:
         raise UserError("Cycles produced no image (see the log)")
-    token = f".partial-{os.getpid()}"
-    staged = {name: out_dir / f"{name}{token}{Path(name).suffix}" for name in OUTPUT_FILES}
-    try:
+    with atomic_paths(*(out_dir / name for name in OUTPUT_FILES)) as (exr, png, js):
         with quiet(log_path):
-            _save(scene, result, staged["render.exr"], "exr")
-            _save(scene, result, staged["render.png"], "png")
-        description = dict(description, render_seconds=round(elapsed, 3),
-                           **cycles_times(staged["render.exr"]),
+            _save(scene, result, exr, "exr")
+            _save(scene, result, png, "png")
+        description = dict(description, render_seconds=round(elapsed, 3), **cycles_times(exr),
                            samples=(scene.cycles.samples if scene.render.engine == 'CYCLES'
                                     else scene.eevee.taa_render_samples),
                            engine=scene.render.engine,
                            view_transform=scene.view_settings.view_transform,
                            blender=bpy.app.version_string)
-        staged["scene.json"].write_text(json.dumps(description, indent=2))
-        for name, tmp in staged.items():
-            if not tmp.is_file():
-                raise UserError(f"Blender did not write {name} into {out_dir}")
-        for name, tmp in staged.items():
-            tmp.replace(out_dir / name)
-    finally:
-        for tmp in staged.values():
-            if tmp.exists():
-                tmp.unlink()
+        js.write_text(json.dumps(description, indent=2))
     return description

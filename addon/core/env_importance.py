@@ -25,10 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .cache import cache_dir
+from .files import atomic_folder
 from .hdri import file_hash, load_hdri, write_float_exr
 from .ibl_bake import area_resample
-from .params import REC709_LUMINANCE
-from .paths import atomic_folder, cache_dir
+from .model import REC709_LUMINANCE
 
 TABLE_SIZE = 4096        # M: resolution of the inverse CDFs (the shader's ENV_TABLE_SIZE)
 TILE_ROWS = 128          # R (the shader's ENV_TILE_ROWS)

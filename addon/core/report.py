@@ -1,12 +1,16 @@
-"""report.html: each comparison as render | reference | difference, per-cell numbers laid out
-as the matrix, the parameters. The first comparison is the model against Principled BSDF; the
-others are the baked IBL modes against the reference integration (the split-sum study)."""
+"""report.html of the main job and of the parity job. The main job's: each comparison as
+render | reference | difference with per-cell numbers laid out as the matrix (the model
+against Principled BSDF, the baked IBL modes against the reference integration, the node group
+against the OSL shader), the attribution table, the white-furnace plot, the timings and the
+parameters. The parity job's: each HDRI's comparison against its bound."""
 
 from __future__ import annotations
 
 import html
 import json
 from pathlib import Path
+
+from .files import write_text
 
 
 def _table(metrics: dict) -> str:
@@ -95,7 +99,7 @@ roughness (light that would scatter again between microfacets is dropped). Smith
 more than the Cook-Torrance (V-cavity) G, min(1, 2(n.h)(n.v)/(v.h), 2(n.h)(n.l)/(v.h)), whose
 masking is weaker at grazing views (Heitz 2014, section 5): with this model's GGX D the
 Cook-Torrance G keeps more energy on rough surfaces, most at grazing views, and both stay
-below 1 (brute-force quadrature of the SPEC formulas agrees; tests/test_energy.py). Solid:
+below 1 (brute-force quadrature of the model's formulas agrees; tests/test_energy.py). Solid:
 the first G; dashed: the second. Curves are measured from the renders (pixels binned by
 view angle, n.v from each pixel's place on the sphere).</p>"""
 
@@ -148,9 +152,7 @@ tr.all td { font-weight: 600; } pre { background: #f4f4f4; padding: 1em; }
 def _write(out_dir: Path, page: str) -> Path:
     """report.html, whole or not at all."""
     path = Path(out_dir) / "report.html"
-    tmp = path.with_name("report.html.partial")
-    tmp.write_text(page, encoding="utf-8")
-    tmp.replace(path)
+    write_text(path, page)
     return path
 
 
@@ -177,7 +179,7 @@ def write_parity_report(out_dir: Path, entries, bound: float) -> Path:
                        "Principled BSDF (GGX)", metrics)
             + f"<p>{_summary(metrics)} {scene.get('samples', '?')} samples per pixel.</p>"
             + f"<h3>Mean &Delta;E00 per sphere</h3>{_grid(metrics, 'ciede2000_mean', '.2f')}"
-            + f"<h3>Relative luminance error per sphere</h3>"
+            + "<h3>Relative luminance error per sphere</h3>"
             + _grid(metrics, 'rel_luminance_error', '+.1%'))
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: Principled parity</title>
@@ -218,7 +220,7 @@ def write_report(out_dir: Path, comparisons, scene: dict, timings: dict, attribu
 <h1>Cook-Torrance Lab: sphere matrix</h1>
 <p>Columns: metallic 0 &rarr; 1 (left to right). Rows: smoothness 1 &rarr; 0 (top to bottom).
 All renders use the same world HDRI and Sun; the Cook-Torrance renders are the OSL shader
-(shared/SPEC.md), the reference is Blender's Principled BSDF path-traced by Cycles.</p>
+(docs/model.md), the reference is Blender's Principled BSDF path-traced by Cycles.</p>
 {_figures(*main)}
 <h2>Summary</h2>
 <p>{_summary(metrics)} Render times: {html.escape(', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))}.</p>

@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from pathlib import Path
 
 import numpy as np
 
 from .errors import UserError
+from .files import atomic_path
 
 
 def oiio():
-    """Blender's bundled OpenImageIO (never the PyPI wheel: it breaks OSL compilation)."""
-    from .compat import bundled_module
-    return bundled_module("OpenImageIO")
+    """Blender's bundled OpenImageIO (never the PyPI wheel: it breaks OSL compilation). The
+    Blender layer makes it importable (bpy.utils.expose_bundled_modules, addon/blender)."""
+    try:
+        import OpenImageIO
+    except ImportError:
+        raise UserError("Blender's bundled OpenImageIO Python module cannot be imported; "
+                        "Cook-Torrance Lab needs Blender 4.5 or newer (as an application or "
+                        "the bpy module, with its bundled modules exposed)") from None
+    return OpenImageIO
 
 
 def file_hash(path: Path) -> str:
@@ -26,14 +34,26 @@ def file_hash(path: Path) -> str:
 
 
 def read_hdri(path, repair: bool = False):
-    """The HDRI as a float32 array (height, width, 3), scene-linear, and the number of NaN/Inf
-    pixels that were set to 0 (only with ``repair``; otherwise they raise).
+    """The HDRI as a float32 array (height, width, 3), scene-linear and read-only, and the
+    number of NaN/Inf pixels that were set to 0 (only with ``repair``; otherwise they raise).
+    A file is decoded once while its size and modification time stay the same.
 
     Raises UserError when the file is missing or unreadable, not floating point, has fewer
     than 3 channels or is not 2:1 equirectangular."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"HDRI not found: {path} (give an existing equirectangular .exr or .hdr file)")
+    st = path.stat()
+    pixels, count = _decode(str(path), st.st_size, st.st_mtime_ns)
+    if count and not repair:
+        raise UserError(f"HDRI holds {count} NaN/Inf pixel(s): {path}; repair the image first")
+    return pixels, count
+
+
+@functools.lru_cache(maxsize=2)
+def _decode(path: str, size: int, mtime_ns: int):
+    """The pixels with NaN/Inf texels set to 0, and how many there were."""
+    path = Path(path)
     OIIO = oiio()
     inp = OIIO.ImageInput.open(str(path))
     if inp is None:
@@ -58,10 +78,9 @@ def read_hdri(path, repair: bool = False):
     pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
     bad = ~np.isfinite(pixels)
     count = int(bad.any(axis=2).sum())
-    if count and not repair:
-        raise UserError(f"HDRI holds {count} NaN/Inf pixel(s): {path}; repair the image first")
     if count:
         pixels = np.where(bad.any(axis=2, keepdims=True), np.float32(0), pixels)
+    pixels.setflags(write=False)
     # Small negative texels are compression noise (7 of Blender's 8 bundled HDRIs have some);
     # Blender renders them as they are, and so do we. Importance weights clamp them to 0.
     return pixels, count
@@ -91,15 +110,13 @@ def write_float_exr(path: Path, pixels: np.ndarray) -> None:
     if pixels.ndim == 2:
         pixels = pixels[:, :, None]
     h, w, c = pixels.shape
-    tmp = path.with_name(path.name + ".partial.exr")
     spec = OIIO.ImageSpec(w, h, c, OIIO.FLOAT)
     spec.attribute("compression", "zip")
-    out = OIIO.ImageOutput.create(str(tmp))
-    if out is None or not out.open(str(tmp), spec):
-        raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
-    ok = out.write_image(pixels)
-    out.close()
-    if not ok:
-        tmp.unlink(missing_ok=True)
-        raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        out = OIIO.ImageOutput.create(str(tmp))
+        if out is None or not out.open(str(tmp), spec):
+            raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+        ok = out.write_image(pixels)
+        out.close()
+        if not ok:
+            raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")

@@ -1,0 +1,105 @@
+"""Drivers that keep a model node's key-light and world inputs in step with the scene.
+
+The model's key light is a Sun object: its direction toward the light is the object's world
++Z axis, its irradiance the light's strength x colour. The direction is read as the world-space
+rotation quaternion (w, x, y, z) through Transform Channel variables, which the depsgraph
+orders after the object's transform (a driver reading matrix_world directly may see it stale):
++Z rotated by q = (2(xz + wy), 2(yz - wx), 1 - 2(x^2 + y^2)). The HDRI's strength and rotation
+are the world's Background strength and Mapping Z rotation. Both implementations name these
+inputs alike (core.model.LIGHTING), so one set of drivers serves both.
+"""
+
+from __future__ import annotations
+
+import bpy
+
+from ..core.model import BY_KEY
+
+SUN_DIRECTION = BY_KEY["sun_to_light"].label
+SUN_IRRADIANCE = BY_KEY["sun_irradiance"].label
+HDRI_STRENGTH = BY_KEY["hdri_strength"].label
+HDRI_ROTATION = BY_KEY["hdri_rotation"].label
+
+
+def _input_path(node: bpy.types.Node, name: str) -> str:
+    index = next(i for i, s in enumerate(node.inputs) if s.name == name)
+    return f'nodes["{node.name}"].inputs[{index}].default_value'
+
+
+def _driver(tree, path, index, expression, variables):
+    fcurve = tree.driver_add(path, index) if index is not None else tree.driver_add(path)
+    drv = fcurve.driver
+    drv.type = 'SCRIPTED'
+    for var in list(drv.variables):
+        drv.variables.remove(var)
+    for name, id_type, ident, data_path in variables:
+        var = drv.variables.new()
+        var.name = name
+        if id_type == 'TRANSFORMS':              # data_path: ROT_W, ROT_X, ...
+            var.type = 'TRANSFORMS'
+            target = var.targets[0]
+            target.id = ident
+            target.transform_type = data_path
+            target.rotation_mode = 'QUATERNION'
+            target.transform_space = 'WORLD_SPACE'
+            continue
+        var.type = 'SINGLE_PROP'
+        var.targets[0].id_type = id_type
+        var.targets[0].id = ident
+        var.targets[0].data_path = data_path
+    drv.expression = expression          # simple expressions: evaluated without Python
+    return fcurve
+
+
+def remove_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node) -> int:
+    """Remove every driver on ``node``'s inputs; returns how many."""
+    anim = tree.animation_data
+    if anim is None:
+        return 0
+    prefix = f'nodes["{node.name}"].'
+    doomed = [fc for fc in anim.drivers if fc.data_path.startswith(prefix)]
+    for fcurve in doomed:
+        anim.drivers.remove(fcurve)
+    return len(doomed)
+
+
+def world_nodes(world: bpy.types.World):
+    """The world's Background and Mapping nodes (either may be None)."""
+    if world is None or world.node_tree is None:
+        return None, None
+    nodes = world.node_tree.nodes
+    background = next((n for n in nodes if n.bl_idname == "ShaderNodeBackground"), None)
+    mapping = next((n for n in nodes if n.bl_idname == "ShaderNodeMapping"), None)
+    return background, mapping
+
+
+def add_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, sun: bpy.types.Object | None,
+                world: bpy.types.World | None) -> int:
+    """Drive ``node``'s key-light and world inputs from ``sun`` and ``world``; returns how many
+    drivers were added. Inputs without a source keep their values."""
+    count = 0
+    names = {s.name for s in node.inputs}
+    if sun is not None and sun.type == 'LIGHT' and sun.data.type == 'SUN':
+        if SUN_DIRECTION in names:
+            path = _input_path(node, SUN_DIRECTION)
+            quat = [(c, 'TRANSFORMS', sun, f"ROT_{c.upper()}") for c in "wxyz"]
+            for i, expr in enumerate(("2 * (x * z + w * y)", "2 * (y * z - w * x)",
+                                      "1 - 2 * (x * x + y * y)")):
+                _driver(tree, path, i, expr, quat)
+                count += 1
+        if SUN_IRRADIANCE in names:
+            path = _input_path(node, SUN_IRRADIANCE)
+            for i in range(3):
+                _driver(tree, path, i, "e * c", [("e", 'LIGHT', sun.data, "energy"),
+                                                  ("c", 'LIGHT', sun.data, f"color[{i}]")])
+                count += 1
+    background, mapping = world_nodes(world)
+    if background is not None and HDRI_STRENGTH in names:
+        _driver(tree, _input_path(node, HDRI_STRENGTH), None, "s",
+                [("s", 'WORLD', world, f'node_tree.nodes["{background.name}"].inputs[1].default_value')])
+        count += 1
+    if mapping is not None and HDRI_ROTATION in names:
+        _driver(tree, _input_path(node, HDRI_ROTATION), None, "r",
+                [("r", 'WORLD', world, f'node_tree.nodes["{mapping.name}"].inputs[2].default_value[2]')])
+        count += 1
+    return count

@@ -1,0 +1,246 @@
+"""The model's node in a material, behind one interface whichever implementation carries it:
+the OSL script node (osl/cook_torrance.osl) or the node group (node_groups/cook_torrance.toml).
+
+Every caller (materials, the scene builder, light sync, conversion, the UI) creates, reads
+and sets the model through these functions; this is the only module that asks which
+implementation a node is. The inputs are those of core.model: the surface inputs and the
+key-light and world inputs have the same socket names in both; the view and the switches are
+strings in OSL and integer inputs in the group; files (the HDRI, its tables and bake) are OSL
+inputs, or the group's texture images. A material "uses the model" when ``find`` returns a
+node.
+"""
+
+from __future__ import annotations
+
+import bpy
+
+from . import drivers, node_group, osl_shader
+from ..core.errors import UserError
+from ..core.model import (BAKED_IBL_MODES, BY_KEY, LIGHTING, OPTIONS, OPTION_VALUES, SURFACE,
+                          Lighting, ModelOptions)
+
+IMPLEMENTATIONS = ("osl", "nodes")
+IMPLEMENTATION_LABELS = {"osl": "OSL Shader", "nodes": "Node Group"}
+NODE_NAME = "Cook-Torrance"
+SURFACE_KEYS = tuple(i.key for i in SURFACE)
+OPTION_KEYS = tuple(i.key for i in OPTIONS)
+
+
+def implementation(node: bpy.types.Node) -> str | None:
+    """"osl", "nodes", or None when the node is not the model."""
+    if node.bl_idname == "ShaderNodeScript":
+        script = node.script
+        if script is not None and script.name.startswith(osl_shader.TEXT_NAME):
+            return "osl"
+    elif node.bl_idname == "ShaderNodeGroup":
+        if node.node_tree is not None and node.node_tree.get(node_group.TAG):
+            return "nodes"
+    return None
+
+
+def find(mat: bpy.types.Material | None) -> bpy.types.Node | None:
+    """The material's Cook-Torrance node, or None when the material does not use the model."""
+    if mat is None or mat.node_tree is None:
+        return None
+    return next((n for n in mat.node_tree.nodes if implementation(n)), None)
+
+
+def model_materials():
+    """Every material in the file that uses the model, with its node."""
+    for mat in bpy.data.materials:
+        node = find(mat)
+        if node is not None:
+            yield mat, node
+
+
+def _input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
+    i = BY_KEY[key]
+    if implementation(node) == "osl":
+        return osl_shader.socket(node, i.osl)
+    return node.inputs[i.group]
+
+
+def surface_input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
+    """The socket of a surface input (albedo, metallic, smoothness, normal)."""
+    if key not in SURFACE_KEYS:
+        raise KeyError(key)
+    return _input(node, key)
+
+
+def shader_output(node: bpy.types.Node) -> bpy.types.NodeSocket:
+    if implementation(node) == "osl":
+        return osl_shader.socket(node, "BSDF", output=True)
+    return node.outputs["Emission"]
+
+
+# --- Creating ----------------------------------------------------------------------------
+
+def new_node(tree: bpy.types.NodeTree, impl: str) -> bpy.types.Node:
+    """A new Cook-Torrance node of the given implementation in ``tree`` (unlinked); the node
+    group's indirect light starts as split_sum (it has no reference mode)."""
+    if impl == "osl":
+        node = tree.nodes.new("ShaderNodeScript")
+        osl_shader.compile_script_node(node)
+    elif impl == "nodes":
+        node = tree.nodes.new("ShaderNodeGroup")
+        node.node_tree = node_group.ensure_group()
+        node.width = 220
+    else:
+        raise UserError(f"unknown implementation {impl!r}; choose one of: "
+                        f"{', '.join(IMPLEMENTATIONS)}")
+    node.name = node.label = NODE_NAME
+    return node
+
+
+def connect_output(tree: bpy.types.NodeTree, node: bpy.types.Node) -> bpy.types.Node:
+    """A Material Output fed by the model: for Cycles only with the OSL shader (EEVEE cannot
+    run it), for every engine with the group."""
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (node.location.x + 400, node.location.y)
+    out.target = 'CYCLES' if implementation(node) == "osl" else 'ALL'
+    tree.links.new(shader_output(node), out.inputs["Surface"])
+    return out
+
+
+def link_geometry_normal(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
+    """The OSL shader reads its normal from a socket: feed it the geometry's when unlinked
+    (the node group falls back to the geometry normal by itself)."""
+    sock = surface_input(node, "normal")
+    if implementation(node) == "osl" and not sock.is_linked:
+        geometry = tree.nodes.new("ShaderNodeNewGeometry")
+        geometry.location = (node.location.x - 250, node.location.y - 350)
+        tree.links.new(geometry.outputs["Normal"], sock)
+
+
+# --- The view and the switches ---------------------------------------------------------
+
+def get_option(node: bpy.types.Node, key: str) -> str:
+    values = OPTION_VALUES[key]
+    value = _input(node, key).default_value
+    if implementation(node) == "osl":
+        return value if value in values else values[0]
+    if key == "ibl":                        # the group's IBL Unity: 0 split_sum, 1 unity
+        return BAKED_IBL_MODES[int(bool(value))]
+    return values[min(max(int(value), 0), len(values) - 1)]
+
+
+def set_option(node: bpy.types.Node, key: str, value: str) -> None:
+    """Set a switch or the view; an unknown value, or the reference IBL on the node group,
+    is a UserError that says what to choose."""
+    values = OPTION_VALUES[key]
+    if value not in values:
+        raise UserError(f"unknown {key.replace('_', ' ')} {value!r}; choose one of: "
+                        f"{', '.join(values)}")
+    sock = _input(node, key)
+    if implementation(node) == "osl":
+        sock.default_value = value
+    elif key == "ibl":
+        if value not in BAKED_IBL_MODES:
+            raise UserError(f"the node group has no {value!r} indirect light (it cannot "
+                            "integrate an HDRI); use one of: " + ", ".join(BAKED_IBL_MODES)
+                            + ", or switch to the OSL implementation")
+        sock.default_value = BAKED_IBL_MODES.index(value)
+    else:
+        sock.default_value = values.index(value)
+
+
+def set_options(node: bpy.types.Node, options: ModelOptions) -> None:
+    """The view, the switches and (OSL) the reference integrator's settings."""
+    for key in OPTION_KEYS:
+        set_option(node, key, getattr(options, key))
+    if implementation(node) == "osl":
+        for key in ("env_samples", "env_visibility", "sun_shadow", "seed"):
+            _input(node, key).default_value = getattr(options, key)
+
+
+# --- Lighting --------------------------------------------------------------------------
+
+def set_lighting(node: bpy.types.Node, lighting: Lighting) -> None:
+    """The key light's and the world's values, then its files (``set_environment``)."""
+    for i in LIGHTING:
+        value = getattr(lighting, i.key)
+        _input(node, i.key).default_value = tuple(value) + (1.0,) if i.kind == "RGBA" \
+            else value
+    set_environment(node, lighting.hdri, lighting.env_tables, lighting.ibl_bake)
+
+
+def set_environment(node: bpy.types.Node, hdri, tables: dict | None = None,
+                    bake=None) -> None:
+    """Point the node at the world's HDRI and what is derived from it: the OSL shader at the
+    file, its importance tables (reference IBL) and its bake folder (split-sum and Unity IBL);
+    the group's textures at the bake. Arguments left None keep what the node has."""
+    if implementation(node) == "osl":
+        osl_shader.set_texture_convention(node)          # a file saved by another Blender
+        if tables is not None:
+            for key, name in (("env_marginal", "marginal"), ("env_conditional", "conditional"),
+                              ("env_pdf_table", "pdf")):
+                _input(node, key).default_value = str(tables.get(name, ""))
+        osl_shader.set_environment(node, hdri, bake)
+    elif bake:
+        node_group.set_bake(node.node_tree, bake)
+
+
+def add_drivers(tree, node, sun, world) -> int:
+    """Drive the key light from a Sun object and the world inputs from the world's nodes."""
+    return drivers.add_drivers(tree, node, sun, world)
+
+
+def remove_drivers(tree, node) -> int:
+    return drivers.remove_drivers(tree, node)
+
+
+# --- Changing implementation ----------------------------------------------------------
+
+def carry_input(tree: bpy.types.NodeTree, src: bpy.types.NodeSocket,
+                dst: bpy.types.NodeSocket) -> None:
+    """Give ``dst`` what feeds ``src``: its link, else its value."""
+    if src.is_linked:
+        tree.links.new(src.links[0].from_socket, dst)
+    else:
+        dst.default_value = src.default_value
+
+
+def _is_geometry_normal(sock: bpy.types.NodeSocket) -> bool:
+    return sock.bl_idname.startswith("NodeSocketVector") and \
+        sock.node.bl_idname == "ShaderNodeNewGeometry" and sock.name == "Normal"
+
+
+def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bpy.types.Node:
+    """Replace the model node ``old`` by one of implementation ``impl``, keeping every link and
+    value of the surface inputs, the options and the output links. The reference IBL becomes
+    split_sum on the node group. Drivers on ``old`` are removed (light sync adds them again)."""
+    new = new_node(tree, impl)
+    new.location = old.location
+    for key in SURFACE_KEYS:
+        src, dst = surface_input(old, key), surface_input(new, key)
+        if key != "normal":
+            carry_input(tree, src, dst)
+        elif src.is_linked and not (impl == "nodes" and
+                                    _is_geometry_normal(src.links[0].from_socket)):
+            tree.links.new(src.links[0].from_socket, dst)
+    for key in OPTION_KEYS:
+        value = get_option(old, key)
+        if key == "ibl" and impl == "nodes" and value not in BAKED_IBL_MODES:
+            value = BAKED_IBL_MODES[0]
+        set_option(new, key, value)
+    for link in list(shader_output(old).links):
+        tree.links.new(shader_output(new), link.to_socket)
+    drivers.remove_drivers(tree, old)
+    tree.nodes.remove(old)
+    new.name = new.label = NODE_NAME
+    link_geometry_normal(tree, new)
+    return new
+
+
+def osl_unavailable_reason(scene: bpy.types.Scene) -> str | None:
+    """Why the OSL shader cannot render in this scene's settings, or None when it can."""
+    engine = scene.render.engine
+    if engine != 'CYCLES':
+        label = {'BLENDER_EEVEE_NEXT': "EEVEE", 'BLENDER_EEVEE': "EEVEE",
+                 'BLENDER_WORKBENCH': "Workbench"}.get(engine, engine)
+        return f"{label} cannot run OSL shaders; they render only in Cycles"
+    if not scene.cycles.shading_system:
+        return "Open Shading Language is off (Render Properties > Cycles)"
+    if scene.cycles.device != 'CPU':
+        return "the render device is the GPU; this OSL shader needs Cycles on the CPU"
+    return None

@@ -1,0 +1,168 @@
+"""The sphere-matrix scene (docs/model.md "The sphere matrix"), built from core.settings.
+
+Smooth-shaded spheres sharing one mesh and one material (per-sphere values in object custom
+properties), an orthographic camera that frames the grid, the world HDRI (Environment Texture
+behind a Mapping node's Z rotation, as a Blender user sets it up) and a Sun key light.
+
+Everything the builder makes is tagged ``ctlab_matrix`` and lives in its own collection;
+rebuilding removes only tagged data, never a user's objects.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import bpy
+from mathutils import Vector
+
+from . import compat, materials, model_node
+from .paths import resolve_hdri
+from ..core import env_importance, ibl_bake
+from ..core.hdri import load_hdri
+from ..core.model import BAKED_IBL_MODES, Lighting
+from ..core.settings import (CAMERA_DISTANCE, TO_CAMERA, MatrixSettings, cell_center, describe,
+                             ortho_scale)
+
+TAG = "ctlab_matrix"
+COLLECTION = "Cook-Torrance Matrix"
+
+
+def remove_matrix(scene: bpy.types.Scene) -> None:
+    """Remove what an earlier build made (tagged data only)."""
+    tagged = [o for o in bpy.data.objects if o.get(TAG)]
+    data = {o.data for o in tagged if o.data is not None}
+    for obj in tagged:
+        bpy.data.objects.remove(obj)
+    for block in data:
+        if block.users == 0:
+            for collection in (bpy.data.meshes, bpy.data.cameras, bpy.data.lights):
+                if block.name in collection and collection[block.name] == block:
+                    collection.remove(block)
+                    break
+    coll = bpy.data.collections.get(COLLECTION)
+    if coll is not None and coll.get(TAG) and not coll.objects:
+        bpy.data.collections.remove(coll)
+
+
+def _tagged(obj):
+    obj[TAG] = True
+    return obj
+
+
+def build_world(s: MatrixSettings, image: bpy.types.Image) -> bpy.types.World:
+    name = "Cook-Torrance Lab World"
+    world = bpy.data.worlds.get(name) or bpy.data.worlds.new(name)
+    world[TAG] = True
+    compat.use_nodes(world)
+    nt = world.node_tree
+    nt.nodes.clear()
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.vector_type = 'POINT'
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(s.hdri_rotation))
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    env.interpolation = 'Linear'
+    env.projection = 'EQUIRECTANGULAR'
+    background = nt.nodes.new("ShaderNodeBackground")
+    background.inputs["Strength"].default_value = s.hdri_strength
+    output = nt.nodes.new("ShaderNodeOutputWorld")
+    for i, node in enumerate((coords, mapping, env, background, output)):
+        node.location = (-900 + 250 * i, 0)
+    nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    nt.links.new(env.outputs["Color"], background.inputs["Color"])
+    nt.links.new(background.outputs["Background"], output.inputs["Surface"])
+    return world
+
+
+def load_image(path: Path) -> bpy.types.Image:
+    image = bpy.data.images.load(str(path), check_existing=True)
+    image.colorspace_settings.name = "Linear Rec.709"
+    return image
+
+
+def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> dict:
+    """Build (or rebuild) the sphere matrix in ``scene``; returns the scene description
+    (core.settings.describe). Validates everything (and bakes the IBL files the model needs,
+    cached) before touching the scene; ``progress(fraction, message)`` follows a bake."""
+    hdri = resolve_hdri(s.hdri)
+    load_hdri(hdri)                               # a clear error for a bad HDRI, before any change
+    tables, bake = {}, ""
+    if s.shader == "osl" and s.model.ibl == "reference":
+        tables = env_importance.tables_for(hdri)
+    elif s.shader != "principled" and s.model.ibl in BAKED_IBL_MODES:
+        bake = ibl_bake.bake(hdri, progress)
+
+    remove_matrix(scene)
+    coll = bpy.data.collections.get(COLLECTION)
+    if coll is None:
+        coll = bpy.data.collections.new(COLLECTION)
+        coll[TAG] = True
+    if coll.name not in scene.collection.children:
+        scene.collection.children.link(coll)
+
+    scene.world = build_world(s, load_image(hdri))
+
+    sun_data = bpy.data.lights.new("Cook-Torrance Lab Sun", 'SUN')
+    sun_data.energy = s.sun_strength
+    sun_data.color = s.sun_color
+    sun_data.angle = 0.0                          # a delta light, as the model's key light
+    sun = _tagged(bpy.data.objects.new("Cook-Torrance Lab Sun", sun_data))
+    sun.rotation_mode = 'QUATERNION'
+    sun.rotation_quaternion = Vector(s.to_light()).to_track_quat('Z', 'Y')  # +Z toward it
+    coll.objects.link(sun)
+
+    cam_data = bpy.data.cameras.new("Cook-Torrance Lab Camera")
+    cam_data.type = 'ORTHO'
+    cam_data.ortho_scale = ortho_scale(s)
+    cam_data.clip_start, cam_data.clip_end = 0.1, 2 * CAMERA_DISTANCE
+    cam = _tagged(bpy.data.objects.new("Cook-Torrance Lab Camera", cam_data))
+    cam.location = CAMERA_DISTANCE * Vector(TO_CAMERA)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)   # looks along +Y
+    coll.objects.link(cam)
+    scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = s.width, s.height
+    scene.render.resolution_percentage = 100
+    scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
+
+    lighting = Lighting(s.to_light(), s.irradiance(), str(hdri), s.hdri_strength,
+                        math.radians(s.hdri_rotation), tables, str(bake))
+    if s.shader == "principled":
+        mat = materials.principled_material("Principled Matrix", per_object=True,
+                                            distribution=s.principled_distribution)
+    else:
+        mat = materials.model_material("Cook-Torrance Matrix", s.shader, s.model, lighting,
+                                       per_object=True)
+        # the key light and the world inputs follow the Sun object and the world's nodes
+        model_node.add_drivers(mat.node_tree, model_node.find(mat), sun, scene.world)
+    mat[TAG] = True
+
+    mesh = bpy.data.meshes.new("Cook-Torrance Lab Sphere")
+    _sphere_mesh(mesh, s.radius)
+    mesh.materials.append(mat)
+    for row, col, metal, smooth in s.cells():
+        obj = _tagged(bpy.data.objects.new(f"CT Sphere r{row} c{col}", mesh))
+        obj.location = cell_center(s, row, col)
+        obj[materials.PROP_ALBEDO] = list(s.albedo)
+        obj[materials.PROP_METALLIC] = metal
+        obj[materials.PROP_SMOOTHNESS] = smooth
+        obj["ctlab_row"], obj["ctlab_col"] = row, col
+        # Spheres do not see each other: each is lit by the world and the Sun alone, as the
+        # model's integrator assumes. They cast shadows (the Sun's, and in Principled's path
+        # tracer the world's) unless the settings turn mutual shadows off (the parity job).
+        obj.visible_diffuse = obj.visible_glossy = obj.visible_transmission = False
+        obj.visible_shadow = s.mutual_shadows
+        coll.objects.link(obj)
+    return describe(s, hdri)
+
+
+def _sphere_mesh(mesh: bpy.types.Mesh, radius: float, segments=96, rings=48) -> None:
+    """A smooth-shaded UV sphere fine enough that facets never show at matrix resolutions."""
+    import bmesh
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.shade_smooth()

@@ -1,0 +1,212 @@
+"""The model's interface, written once (docs/model.md): its surface inputs, switches, views,
+the key-light and world inputs, and the derived quantities the UI shows.
+
+Every implementation and caller reads these names from here: the OSL shader's parameters
+(tests/test_interface.py checks the shader against this table), the node group's interface
+(addon/blender/node_group.py builds its sockets from INPUTS), the model-node API, light sync,
+the command line and the UI. Like MaterialX's node definitions, one interface serves
+implementations in two languages.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+# --- Switches (docs/model.md "Switches"); the first value is the default.
+G_MODELS = ("cook_torrance", "smith_ggx_correlated")
+DIFFUSE_MODELS = ("disney", "lambert")
+UNITS = ("physical", "unity")
+# reference: Monte Carlo against the HDRI (OSL only); split_sum (Karis 2013) and unity
+# (Unity's reflection-probe approximation) read the files baked by core.ibl_bake.
+IBL_MODES = ("reference", "split_sum", "unity")
+BAKED_IBL_MODES = ("split_sum", "unity")
+IBL_LABELS = {"reference": ("Reference", "Monte Carlo integration against the HDRI"),
+              "split_sum": ("Split-Sum", "Pre-filtered levels and the DFG table (baked, cached)"),
+              "unity": ("Unity", "Unity's reflection-probe approximation (baked, cached)")}
+
+# --- Views (docs/model.md "Views"), in this order everywhere (the node group's View index).
+LIGHTING_VIEWS = ("full", "direct", "indirect", "direct_diffuse", "direct_specular",
+                  "indirect_diffuse", "indirect_specular")
+TERM_VIEWS = ("D", "F", "G", "specular_brdf", "diffuse_brdf",
+              "NdotL", "NdotV", "NdotH", "VdotH", "normal", "albedo", "spec_color")
+VIEWS = LIGHTING_VIEWS + TERM_VIEWS
+# Rendered with one sample at each pixel centre (one exact shading point a pixel).
+EXACT_VIEWS = TERM_VIEWS
+# Their PNG uses Blender's AgX view transform; the term views use Standard (raw values).
+AGX_VIEWS = LIGHTING_VIEWS
+
+REC709_LUMINANCE = (0.2126, 0.7152, 0.0722)     # Y of linear Rec. 709 RGB
+MIN_ALPHA = 0.002                               # GGX alpha = max(pr^2, MIN_ALPHA)
+DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
+MATRIX_ALBEDO = (1.0, 0.766, 0.336)             # gold: metals show their colour in the matrix
+
+
+@dataclass(frozen=True)
+class Input:
+    """One input of the model node.
+
+    ``key`` names it in Python (a ModelOptions or Lighting field, or a surface input);
+    ``label`` is its name in the UI, the node group's socket and the OSL parameter's label;
+    ``osl`` the OSL parameter (None where the shader has none); ``group`` the node group's
+    socket (None where the group has none). Switches are strings in OSL and 0/1 integers in
+    the group (``values[i]`` for i), so they have both names."""
+    key: str
+    label: str
+    kind: str                       # FLOAT, INT, RGBA, VECTOR, STRING
+    default: object
+    tooltip: str
+    osl: str | None = None
+    group: str | None = None
+    min: float = 0.0
+    max: float = 1.0
+    values: tuple = ()              # a switch's values (the first is the default)
+
+
+def _surface(key, label, kind, default, tooltip, osl, lo=0.0, hi=1.0):
+    return Input(key, label, kind, default, tooltip, osl=osl, group=label, min=lo, max=hi)
+
+
+# The surface inputs: the values a material gives the model.
+SURFACE = (
+    _surface("albedo", "Albedo", "RGBA", DEFAULT_ALBEDO + (1.0,), "Base colour, linear RGB",
+             "albedo"),
+    _surface("metallic", "Metallic", "FLOAT", 0.0, "Metalness", "metallic"),
+    _surface("smoothness", "Smoothness", "FLOAT", 0.5,
+             "Unity's smoothness: perceptual roughness = 1 - smoothness", "smoothness"),
+    _surface("normal", "Normal", "VECTOR", (0.0, 0.0, 0.0),
+             "Shading normal (world space); unconnected: the geometry's", "shading_normal",
+             -1.0, 1.0),
+)
+
+# The view and the switches: strings in OSL, indices / 0-1 integers in the node group.
+OPTIONS = (
+    Input("view", "View", "INT", 0,
+          ", ".join(f"{i} {v}" for i, v in enumerate(VIEWS)), osl="view", group="View",
+          min=0, max=len(VIEWS) - 1, values=VIEWS),
+    Input("g_model", "G", "INT", 0, "0: Cook-Torrance G; 1: height-correlated Smith G",
+          osl="g_model", group="G Smith", values=G_MODELS),
+    Input("diffuse_model", "Diffuse", "INT", 0, "0: Disney diffuse; 1: Lambert",
+          osl="diffuse_model", group="Diffuse Lambert", values=DIFFUSE_MODELS),
+    Input("units", "Units", "INT", 0,
+          "0: physical; 1: Unity (x pi on direct light and the BRDF views)",
+          osl="units", group="Units Unity", values=UNITS),
+    # the group has no reference mode: IBL Unity 0 is split_sum, 1 unity
+    Input("ibl", "IBL", "INT", 0, "0: split-sum; 1: Unity's approximation",
+          osl="ibl", group="IBL Unity", values=IBL_MODES),
+)
+
+# The key light and the world, as drivers and the sync handler keep them (light_sync).
+LIGHTING = (
+    Input("sun_to_light", "Sun Direction", "VECTOR", (0.0, 0.0, 1.0),
+          "Direction toward the key Sun (a driver keeps it in sync)", osl="sun_to_light",
+          group="Sun Direction", min=-1.0, max=1.0),
+    Input("sun_irradiance", "Sun Irradiance", "RGBA", (0.0, 0.0, 0.0, 1.0),
+          "Sun strength x colour (W/m^2)", osl="sun_irradiance", group="Sun Irradiance",
+          max=1e6),
+    Input("hdri_strength", "HDRI Strength", "FLOAT", 1.0, "The world's Background strength",
+          osl="hdri_strength", group="HDRI Strength", max=1e6),
+    Input("hdri_rotation", "HDRI Rotation", "FLOAT", 0.0,
+          "The world Mapping's Z rotation (radians)", osl="hdri_rotation",
+          group="HDRI Rotation", min=-1000.0, max=1000.0),
+)
+
+# What only the OSL shader has: files (a node cannot be given a file by a driver), the
+# reference integrator's settings, and how this Blender's texture() counts rows.
+OSL_ONLY = (
+    Input("sun_shadow", "Sun Shadow", "INT", 1, "Trace the key Sun's shadow", osl="sun_shadow"),
+    Input("ibl_bake", "IBL Bake Folder", "STRING", "", "The split-sum bake (core.ibl_bake)",
+          osl="ibl_bake"),
+    Input("hdri", "HDRI", "STRING", "", "The world's equirectangular HDRI", osl="hdri"),
+    Input("hdri_width", "HDRI Width", "INT", 0, "The HDRI's width in texels", osl="hdri_width"),
+    Input("env_marginal", "Env Marginal Table", "STRING", "",
+          "Environment sampling: the rows' inverse CDF", osl="env_marginal"),
+    Input("env_conditional", "Env Conditional Table", "STRING", "",
+          "Environment sampling: each row's columns' inverse CDF", osl="env_conditional"),
+    Input("env_pdf_table", "Env PDF Table", "STRING", "",
+          "Environment sampling: the density of a draw", osl="env_pdf_table"),
+    Input("env_samples", "Env Samples", "INT", 4,
+          "BRDF and environment samples per shading point (each)", osl="env_samples",
+          min=1, max=1024),
+    Input("env_visibility", "Env Visibility", "INT", 0,
+          "Trace environment samples for occlusion", osl="env_visibility"),
+    Input("seed", "Seed", "INT", 0, "Offsets the integrator's random numbers", osl="seed",
+          min=-(2 ** 31), max=2 ** 31 - 1),
+    Input("tex_bottom_up", "Texture Rows Bottom-Up", "INT", 0,
+          "Whether this Blender's OSL texture() counts rows from the bottom (5.2 and later)",
+          osl="tex_bottom_up"),
+)
+
+INPUTS = SURFACE + OPTIONS + LIGHTING + OSL_ONLY
+GROUP_INPUTS = tuple(i for i in INPUTS if i.group)      # the node group's sockets, in order
+OSL_INPUTS = tuple(i for i in INPUTS if i.osl)           # the OSL shader's parameters
+BY_KEY = {i.key: i for i in INPUTS}
+OPTION_VALUES = {i.key: i.values for i in OPTIONS}       # key -> allowed values
+
+# The node group's outputs (the OSL shader's is its closure, BSDF).
+GROUP_OUTPUTS = (("Emission", "SHADER"), ("Value", "RGBA"))
+OSL_OUTPUT = "BSDF"
+
+
+# --- Derived quantities (docs/model.md; Unity's UnityStandardUtils / UnityStandardBRDF)
+
+def clamp01(x: float) -> float:
+    """Inputs outside their range are clamped, never passed on."""
+    return min(1.0, max(0.0, float(x)))
+
+
+def perceptual_roughness(smoothness: float) -> float:
+    """Unity's SmoothnessToPerceptualRoughness: pr = 1 - smoothness."""
+    return 1.0 - clamp01(smoothness)
+
+
+def ggx_alpha(smoothness: float) -> float:
+    """GGX alpha = max(pr^2, 0.002) (Unity's PerceptualRoughnessToRoughness, clamped)."""
+    return max(perceptual_roughness(smoothness) ** 2, MIN_ALPHA)
+
+
+class ModelOptions:
+    """The model node's settings other than its surface inputs: the view, the switches and
+    the reference integrator's settings."""
+
+    def __init__(self, view="full", g_model=G_MODELS[0], diffuse_model=DIFFUSE_MODELS[0],
+                 units=UNITS[0], ibl=IBL_MODES[0], env_samples=4, env_visibility=False,
+                 sun_shadow=True, seed=0):
+        self.view = view
+        self.g_model = g_model
+        self.diffuse_model = diffuse_model
+        self.units = units
+        self.ibl = ibl
+        self.env_samples = int(env_samples)
+        self.env_visibility = bool(env_visibility)
+        self.sun_shadow = bool(sun_shadow)
+        self.seed = int(seed)
+        self.validate()
+
+    def validate(self):
+        from .errors import UserError
+        for i in OPTIONS:
+            value = getattr(self, i.key)
+            if value not in i.values:
+                what = i.label if i.key in ("g_model", "ibl") else i.label.lower()
+                raise UserError(f"unknown {what} {value!r}; choose one of: "
+                                f"{', '.join(i.values)}")
+        lo, hi = BY_KEY["env_samples"].min, BY_KEY["env_samples"].max
+        if not lo <= self.env_samples <= hi:
+            raise UserError(f"env samples {self.env_samples} out of range; use {lo} to {hi}")
+
+    def as_dict(self):
+        return dict(vars(self))
+
+
+@dataclass
+class Lighting:
+    """What the model node must know of the scene's lights (the OSL shader cannot read other
+    objects): the key Sun, the world's HDRI with its strength and rotation, and the files
+    derived from the HDRI (importance tables for the reference IBL, the split-sum bake)."""
+    sun_to_light: tuple = (0.0, 0.0, 1.0)
+    sun_irradiance: tuple = (0.0, 0.0, 0.0)
+    hdri: str = ""
+    hdri_strength: float = 1.0
+    hdri_rotation: float = 0.0              # radians, as the Mapping node's Z
+    env_tables: dict = field(default_factory=dict)
+    ibl_bake: str = ""

@@ -1,0 +1,151 @@
+"""What a render of the sphere matrix is, as data: the grid, the image, the world, the key
+Sun, the model's options and which shader carries it; validated once, with one-line errors.
+Also the matrix's geometry (docs/model.md "The sphere matrix"), which both the scene builder
+and scene.json use: columns metallic 0 -> 1 left to right, rows smoothness 1 -> 0 top to
+bottom, the grid in the XZ plane seen by an orthographic camera looking along +Y."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+from .errors import UserError
+from .model import BAKED_IBL_MODES, DEFAULT_ALBEDO, ModelOptions
+
+SHADERS = ("osl", "nodes", "principled")     # the OSL shader, the node group, the reference
+MAX_GRID = 16
+SIZE_RANGE = (16, 4096)
+CAMERA_DISTANCE = 20.0
+TO_CAMERA = (0.0, -1.0, 0.0)
+
+
+def with_overrides(s: "MatrixSettings", overrides: dict) -> "MatrixSettings":
+    """New settings with scene fields or model options (``view``, ``g_model``, ...) replaced,
+    validated as they are made."""
+    model_keys = set(vars(s.model))
+    model = ModelOptions(**dict(vars(s.model), **{k: v for k, v in overrides.items()
+                                                  if k in model_keys}))
+    scene = {k: v for k, v in overrides.items() if k not in model_keys}
+    return dataclasses.replace(s, model=model, **scene)
+
+
+def matrix_values(rows: int, cols: int):
+    """(row, col, metallic, smoothness) of each sphere: metallic 0 -> 1 by column, smoothness
+    1 -> 0 by row (0.5 for a single row or column)."""
+    for r in range(rows):
+        smooth = 1.0 - r / (rows - 1) if rows > 1 else 0.5
+        for c in range(cols):
+            metal = c / (cols - 1) if cols > 1 else 0.5
+            yield r, c, metal, smooth
+
+
+def normalized(v) -> tuple:
+    length = math.sqrt(sum(x * x for x in v))
+    return tuple(x / length for x in v)
+
+
+@dataclass
+class MatrixSettings:
+    rows: int = 7
+    cols: int = 7
+    spacing: float = 1.0                # distance between sphere centres (m)
+    radius: float = 0.42                # sphere radius (m)
+    albedo: tuple = DEFAULT_ALBEDO
+    hdri: str = ""                      # empty: Blender's bundled forest.exr
+    hdri_strength: float = 1.0
+    hdri_rotation: float = 0.0          # degrees about Z, as the Mapping node
+    sun_to_light: tuple = (-0.45, -0.55, 0.70)
+    sun_strength: float = 1.0           # irradiance (W/m^2), Blender's Sun strength
+    sun_color: tuple = (1.0, 1.0, 1.0)
+    shader: str = "osl"
+    principled_distribution: str = "MULTI_GGX"
+    width: int = 512
+    height: int = 512
+    model: ModelOptions = field(default_factory=ModelOptions)
+    metallic: float | None = None       # every sphere's metallic (None: 0 -> 1 by column)
+    # Spheres shadow each other (the Sun's and, in a path tracer, the world's light); off,
+    # each sphere is lit by the unoccluded world, as the model's integrator assumes.
+    mutual_shadows: bool = True
+
+    def __post_init__(self):
+        self.validate()                 # settings are checked once, when made
+
+    def cells(self):
+        """(row, col, metallic, smoothness) of every sphere."""
+        for row, col, metal, smooth in matrix_values(self.rows, self.cols):
+            yield row, col, (metal if self.metallic is None else self.metallic), smooth
+
+    def to_light(self) -> tuple:
+        return normalized(self.sun_to_light)
+
+    def irradiance(self) -> tuple:
+        return tuple(self.sun_strength * c for c in self.sun_color)
+
+    def validate(self) -> None:
+        if not (1 <= self.rows <= MAX_GRID and 1 <= self.cols <= MAX_GRID):
+            raise UserError(f"grid {self.rows}x{self.cols} out of range; use 1x1 to "
+                            f"{MAX_GRID}x{MAX_GRID}")
+        for n in (self.width, self.height):
+            if not SIZE_RANGE[0] <= n <= SIZE_RANGE[1]:
+                raise UserError(f"image size {n} out of range; use {SIZE_RANGE[0]} to "
+                                f"{SIZE_RANGE[1]}")
+        if self.shader not in SHADERS:
+            raise UserError(f"unknown shader {self.shader!r}; choose one of: {', '.join(SHADERS)}")
+        if self.shader == "nodes" and self.model.ibl not in BAKED_IBL_MODES:
+            raise UserError(f"the node group has no {self.model.ibl!r} indirect light (it "
+                            "cannot integrate an HDRI); use one of: "
+                            + ", ".join(BAKED_IBL_MODES))
+        vec = self.sun_to_light
+        if len(vec) != 3 or not all(math.isfinite(x) for x in vec) or \
+                math.sqrt(sum(x * x for x in vec)) < 1e-6:
+            raise UserError(f"sun direction {vec} is not a non-zero 3-vector")
+        for name in ("hdri_strength", "sun_strength", "hdri_rotation"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or (name != "hdri_rotation" and value < 0):
+                raise UserError(f"{name.replace('_', ' ')} {value} out of range; use a finite "
+                                + ("number" if name == "hdri_rotation" else "value >= 0"))
+        if self.metallic is not None and not 0.0 <= self.metallic <= 1.0:
+            raise UserError(f"metallic {self.metallic} out of range; use 0 to 1")
+        if len(self.albedo) != 3 or not all(0.0 <= a <= 1.0 for a in self.albedo):
+            raise UserError(f"albedo {self.albedo} out of range; use three values in [0, 1]")
+        self.model.validate()
+
+
+# ----------------------------------------------------------------------------------------
+# Geometry of the grid (the camera framing and the cells' pixel positions come from here)
+
+def cell_center(s: MatrixSettings, row: int, col: int) -> tuple:
+    """World position of a sphere: the grid lies in the XZ plane, the camera looks along +Y."""
+    return ((col - (s.cols - 1) / 2) * s.spacing, 0.0, ((s.rows - 1) / 2 - row) * s.spacing)
+
+
+def ortho_scale(s: MatrixSettings) -> float:
+    """Blender's orthographic scale spans the larger image dimension (sensor fit AUTO)."""
+    aspect = s.width / s.height
+    return max(s.cols * s.spacing, s.rows * s.spacing * aspect) if aspect >= 1 else \
+        max(s.rows * s.spacing, s.cols * s.spacing / aspect)
+
+
+def world_to_pixel(s: MatrixSettings, p) -> tuple:
+    """Pixel coordinates (origin top-left, x right, y down) of a world point in the XZ plane,
+    and the pixels per metre."""
+    px_per_m = max(s.width, s.height) / ortho_scale(s)
+    return (s.width / 2 + p[0] * px_per_m, s.height / 2 - p[2] * px_per_m), px_per_m
+
+
+def describe(s: MatrixSettings, hdri: str) -> dict:
+    """The scene as data for scene.json: image size, directions, and each cell in pixels
+    (``hdri``: the file the world shows)."""
+    cells = []
+    for row, col, metal, smooth in s.cells():
+        (cx, cy), px_per_m = world_to_pixel(s, cell_center(s, row, col))
+        cells.append({"row": row, "col": col, "metallic": metal, "smoothness": smooth,
+                      "albedo": list(s.albedo), "center_px": [cx, cy],
+                      "radius_px": s.radius * px_per_m})
+    return {"width": s.width, "height": s.height, "to_camera": list(TO_CAMERA),
+            "sun": {"to_light": list(s.to_light()), "irradiance": list(s.irradiance())},
+            "hdri": str(hdri), "hdri_strength": s.hdri_strength,
+            "hdri_rotation_deg": s.hdri_rotation, "shader": s.shader,
+            "principled_distribution": s.principled_distribution,
+            "rows": s.rows, "cols": s.cols, "model": s.model.as_dict(), "cells": cells}

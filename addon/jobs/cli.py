@@ -1,0 +1,317 @@
+"""The command line: ``render``, ``compare``, ``bake`` and ``matrix`` (scripts/ctlab.py is the
+entry). It maps arguments onto settings (core.settings) and runs the pipeline (jobs/pipeline.py).
+
+Bad input gets a one-line message naming the problem and exit status 2, and nothing is
+written. Blender's own per-tile output goes to a log file in the system temp folder; the
+command prints its own progress, or, with $CTLAB_JSON_EVENTS set (the background job), one
+JSON object per event. A job stops between steps when the file named by $CTLAB_CANCEL_FILE
+exists (exit status 130; finished outputs are kept).
+
+The scene options are one table (SCENE_ARGS) from which the parser is built and from which
+``argv`` writes a command line, so a caller that builds one (the add-on's background
+comparison) cannot drift from what the parser reads.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import pipeline
+from ..blender.renderer import ENGINES
+from ..core.errors import UserError
+from ..core.model import (DIFFUSE_MODELS, G_MODELS, IBL_MODES, MATRIX_ALBEDO, UNITS, VIEWS,
+                          ModelOptions)
+from ..core.settings import SHADERS, MatrixSettings
+
+EXIT_BAD_INPUT = 2
+EXIT_CANCELLED = 130
+
+
+def parse_vector(text: str, n: int, what: str) -> tuple:
+    try:
+        values = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != n or not all(math.isfinite(v) for v in values):
+        raise UserError(f"malformed {what} {text!r}; give {n} comma-separated numbers")
+    return values
+
+
+def parse_grid(text: str) -> tuple:
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.isdigit() for p in parts):
+        raise UserError(f"malformed grid {text!r}; give ROWSxCOLS, e.g. 7x7")
+    return int(parts[0]), int(parts[1])
+
+
+# ---------------------------------------------------------------------------------------
+# Output: human lines, or JSON events for the background job
+
+def _json_events() -> bool:
+    return bool(os.environ.get("CTLAB_JSON_EVENTS"))
+
+
+def say(message: str) -> None:
+    if _json_events():
+        print(json.dumps({"event": "note", "message": message}), flush=True)
+    else:
+        print(f"[ctlab {time.strftime('%H:%M:%S')}] {message}", flush=True)
+
+
+def warn(message: str) -> None:
+    print(f"ctlab: warning: {message}", file=sys.stderr, flush=True)
+
+
+def _progress(step: int, total: int, message: str) -> None:
+    if _json_events():
+        print(json.dumps({"event": "progress", "step": step, "total": total,
+                          "message": message}), flush=True)
+    else:
+        say(f"[{step}/{total}] {message}")
+
+
+def _cancel_requested() -> bool:
+    flag = os.environ.get("CTLAB_CANCEL_FILE")
+    return bool(flag) and os.path.exists(flag)
+
+
+def events() -> pipeline.Events:
+    return pipeline.Events(progress=_progress, note=lambda m: say(f"  {m}"),
+                           cancelled=_cancel_requested)
+
+
+# ---------------------------------------------------------------------------------------
+# The scene options: one table for the parser and for command lines built by callers
+
+@dataclass(frozen=True)
+class Arg:
+    flag: str
+    dest: str
+    help: str
+    type: object = str
+    default: object = None
+    choices: tuple | None = None
+    flag_only: bool = False          # a switch without a value (store_true)
+
+
+SCENE_ARGS = (
+    Arg("--grid", "grid", "ROWSxCOLS of the sphere matrix (default 7x7; 5x3 with --parity)"),
+    Arg("--size", "size", "image width and height in pixels (default 512; 384 with --parity)",
+        int),
+    Arg("--samples", "samples", "render samples per pixel (default 64; 256 with --parity)", int),
+    Arg("--hdri", "hdri", "equirectangular HDRI (default: Blender's forest.exr)", str, ""),
+    Arg("--hdri-strength", "hdri_strength", "the world's strength", float, 1.0),
+    Arg("--hdri-rotation", "hdri_rotation", "degrees about Z", float, 0.0),
+    Arg("--sun-dir", "sun_dir", "X,Y,Z toward the Sun", str,
+        ",".join(map(str, MatrixSettings.sun_to_light))),
+    Arg("--sun-strength", "sun_strength", "Sun irradiance (W/m^2)", float, 1.0),
+    Arg("--albedo", "albedo", "R,G,B linear albedo (default: gold)", str,
+        ",".join(map(str, MATRIX_ALBEDO))),
+    Arg("--ibl", "ibl", "indirect light: " + "|".join(IBL_MODES) + " (default: reference; "
+        "split_sum for the node group; split_sum and unity use the files of 'ctlab bake', "
+        "made and cached on demand)"),
+    Arg("--g", "g_model", "|".join(G_MODELS), str, G_MODELS[0]),
+    Arg("--diffuse", "diffuse_model", "|".join(DIFFUSE_MODELS), str, DIFFUSE_MODELS[0]),
+    Arg("--units", "units", "|".join(UNITS), str, UNITS[0]),
+    Arg("--env-samples", "env_samples", "environment samples per shading point and render "
+        "sample (each of BRDF and environment sampling)", int, 4),
+    Arg("--env-visibility", "env_visibility",
+        "trace environment samples for occlusion by other objects", flag_only=True),
+    Arg("--principled-distribution", "principled_distribution", "Principled's GGX",
+        str, "MULTI_GGX", ("MULTI_GGX", "GGX")),
+    Arg("--seed", "seed", "the render's seed", int, 0),
+    Arg("--verbose", "verbose", "show Blender's own output", flag_only=True),
+)
+_BY_DEST = {a.dest: a for a in SCENE_ARGS}
+
+
+def add_scene_arguments(p: argparse.ArgumentParser) -> None:
+    for a in SCENE_ARGS:
+        if a.flag_only:
+            p.add_argument(a.flag, dest=a.dest, action="store_true", help=a.help)
+        else:
+            p.add_argument(a.flag, dest=a.dest, type=a.type, default=a.default,
+                           choices=a.choices, help=a.help)
+
+
+def argv(command: str, *words, **values) -> list:
+    """A command line for ``command`` with scene options given by their settings names
+    (``argv("matrix", "--out", OUT, sun_dir=(x, y, z), samples=64)``). Values are written as
+    ``--flag=value``, so a negative number or a list starting with "-" cannot be read as an
+    option; an unknown name is a KeyError here rather than a parse error in the child."""
+    out = [command, *map(str, words)]
+    for dest, value in values.items():
+        a = _BY_DEST[dest]
+        if a.flag_only:
+            if value:
+                out.append(a.flag)
+            continue
+        if isinstance(value, (tuple, list)):
+            value = ",".join(f"{float(v):.9g}" for v in value)
+        elif isinstance(value, float):
+            value = f"{value:.9g}"
+        out.append(f"{a.flag}={value}")
+    return out
+
+
+DEFAULTS = {"grid": "7x7", "size": 512, "samples": 64}
+PARITY_DEFAULTS = {"grid": "5x3", "size": 384, "samples": 256}
+
+
+def settings_from(args, shader: str, view: str) -> MatrixSettings:
+    """The scene and model settings from the command line, validated."""
+    if view not in VIEWS and view != "all":
+        raise UserError(f"unknown view {view!r}; choose one of: {', '.join(VIEWS)}")
+    rows, cols = parse_grid(args.grid)
+    if args.samples < 1 or args.samples > 65536:
+        raise UserError(f"samples {args.samples} out of range; use 1 to 65536")
+    ibl = args.ibl or ("split_sum" if shader == "nodes" else IBL_MODES[0])
+    model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
+                         units=args.units, ibl=ibl, env_samples=args.env_samples,
+                         env_visibility=args.env_visibility, seed=args.seed)
+    s = MatrixSettings(rows=rows, cols=cols, hdri=args.hdri, hdri_strength=args.hdri_strength,
+                       hdri_rotation=args.hdri_rotation,
+                       sun_to_light=parse_vector(args.sun_dir, 3, "sun direction"),
+                       sun_strength=args.sun_strength,
+                       albedo=parse_vector(args.albedo, 3, "albedo"), shader=shader,
+                       principled_distribution=args.principled_distribution,
+                       width=args.size, height=args.size, model=model)
+    return s
+
+
+# ---------------------------------------------------------------------------------------
+# The commands
+
+def cmd_render(args) -> None:
+    views = VIEWS if args.view == "all" else (args.view,)
+    if args.engine == "eevee" and args.shader != "nodes":
+        raise UserError("--engine eevee renders the node group only; add --shader nodes")
+    settings = settings_from(args, args.shader, views[0])
+    from ..blender.paths import resolve_hdri
+    from ..core.hdri import load_hdri
+    load_hdri(resolve_hdri(settings.hdri))
+    out = Path(args.out)
+    dirs = {v: out / v for v in views} if args.view == "all" else {views[0]: out}
+    say(f"rendering {settings.shader} view={args.view} grid={args.grid} size={args.size} "
+        f"samples={args.samples} -> {out}")
+
+    def report(i, view, d):
+        _progress(i + 1, len(dirs), f"{view}: {d['render_seconds']:.1f} s -> {dirs[view]}")
+    pipeline.render_views(settings, dirs, args.samples, pixel_centres=args.pixel_centres,
+                          engine=args.engine, verbose=args.verbose, events=events(),
+                          on_view=report)
+    say("done: render.exr, render.png and scene.json in each folder")
+
+
+def cmd_compare(args) -> None:
+    from ..core.compare import compare
+    result = compare(Path(args.dir_a), Path(args.dir_b), Path(args.out))
+    o = result["overall"]
+    say(f"compared {len(result['cells'])} cells: mean CIEDE2000 {o['ciede2000_mean']:.2f}, "
+        f"PSNR {o['psnr_db']:.2f} dB -> {Path(args.out) / 'metrics.json'}, diff.png")
+
+
+def cmd_bake(args) -> None:
+    """Bake the split-sum files of an HDRI (cached by content hash), optionally copied to --out."""
+    say(f"baking {args.hdri}")
+    folder = pipeline.run_bake(Path(args.hdri), Path(args.out) if args.out else None,
+                               events(), warn)
+    names = ", ".join(sorted(p.name for p in folder.iterdir() if not p.name.startswith(".")))
+    say(f"done: {folder}: {names}")
+
+
+def cmd_matrix(args) -> None:
+    """The main job (or, with --parity, the Principled-parity check)."""
+    if args.parity:
+        return cmd_parity(args)
+    base = settings_from(args, "osl", "full")
+    out = Path(args.out or "out/matrix")
+    result = pipeline.run_matrix(base, args.samples, out, events(), args.verbose)
+    de = {k: r["overall"]["ciede2000_mean"] for k, r in result["comparisons"].items()}
+    say(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
+        f"(PSNR {result['comparisons']['compare']['overall']['psnr_db']:.2f} dB); split-sum "
+        f"against the reference {de['compare_split_sum']:.2f}, Unity {de['compare_unity']:.2f}; "
+        f"node group against OSL {de['compare_nodes']:.3f}; open {result['report']}")
+
+
+def cmd_parity(args) -> None:
+    """The Principled-parity check (pipeline.run_parity) for each HDRI of --parity-hdris, or
+    for --hdri."""
+    base = settings_from(args, "osl", "full")
+    hdris = [Path(args.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
+    out = Path(args.out or "out/parity")
+    result = pipeline.run_parity(base, hdris, args.samples, out, events(), args.verbose)
+    say(f"done: parity {'holds' if result['holds'] else 'FAILS'} (every sphere's mean "
+        f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ctlab", description="Cook-Torrance Lab batch tools")
+    sub = parser.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("render", help="render the sphere matrix with one shader and view")
+    r.add_argument("--shader", required=True, choices=SHADERS,
+                   help="the OSL shader, the node group (its default IBL: split_sum) or "
+                        "Principled BSDF")
+    r.add_argument("--out", required=True, help="output folder")
+    r.add_argument("--view", default="full",
+                   help="|".join(VIEWS) + "|all (all: one sub-folder per view)")
+    r.add_argument("--engine", default=ENGINES[0], choices=ENGINES,
+                   help="cycles (CPU; SVM for the node group) or eevee (node group only)")
+    r.add_argument("--pixel-centres", action="store_true",
+                   help="every view as one sample at each pixel centre, like the term views "
+                        "(exact per-pixel values, no anti-aliasing; OSL or node group)")
+    add_scene_arguments(r)
+    r.set_defaults(func=cmd_render)
+    c = sub.add_parser("compare", help="compare two render folders")
+    c.add_argument("dir_a")
+    c.add_argument("dir_b")
+    c.add_argument("--out", required=True, help="output folder for metrics.json and diff.png")
+    c.set_defaults(func=cmd_compare)
+    b = sub.add_parser("bake", help="bake an HDRI's split-sum files (pre-filtered levels, "
+                                    "irradiance, DFG tables), cached by content hash")
+    b.add_argument("hdri", help="equirectangular float HDRI (.exr, .hdr)")
+    b.add_argument("--out", default="", help="also copy the files into this folder")
+    b.set_defaults(func=cmd_bake)
+    m = sub.add_parser("matrix", help="the main job: Cook-Torrance vs Principled, with a report")
+    m.add_argument("--out", default=None,
+                   help="output folder (default out/matrix; out/parity with --parity)")
+    m.add_argument("--parity", action="store_true",
+                   help="the Principled-parity check instead: metallic spheres, Smith G, "
+                        "Lambert, reference IBL, Sun off, against Principled's single-scatter "
+                        "GGX, for each of --parity-hdris (or --hdri)")
+    m.add_argument("--parity-hdris", default=",".join(pipeline.PARITY_HDRIS),
+                   help="Blender's bundled HDRIs for --parity (default: %(default)s)")
+    add_scene_arguments(m)
+    m.set_defaults(func=cmd_matrix)
+    return parser
+
+
+def fill_defaults(args, defaults: dict) -> None:
+    for key, value in defaults.items():
+        if getattr(args, key, None) is None:
+            setattr(args, key, value)
+
+
+def main(argv_=None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv_)
+    except SystemExit as exc:                   # argparse already printed one line
+        return EXIT_BAD_INPUT if exc.code else 0
+    fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
+    try:
+        args.func(args)
+    except UserError as exc:
+        print(f"ctlab: error: {exc}", file=sys.stderr, flush=True)
+        return EXIT_BAD_INPUT
+    except pipeline.Cancelled:
+        print("ctlab: cancelled; finished outputs are kept", file=sys.stderr, flush=True)
+        return EXIT_CANCELLED
+    return 0

@@ -1,0 +1,254 @@
+"""The pipeline: rendering views of the sphere matrix, the main comparison job, the Principled
+parity job and the bake, as functions that take validated settings (core.settings) and report
+through ``Events``. The command line, the background job, the benchmark and the tests all run
+these; none of them parses another's output.
+
+A job reports ``progress(step, total, message)`` before each step and ``note(message)`` within
+one, and polls ``cancelled()`` between steps: when it answers True the job stops with
+``Cancelled``, keeping every output it finished (each render folder is written whole).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import bpy
+
+from ..blender import model_node, renderer, scene_builder
+from ..blender.paths import bundled_hdri, resolve_hdri
+from ..core import energy, ibl_bake
+from ..core.compare import compare, read_image
+from ..core.files import check_writable
+from ..core.hdri import load_hdri
+from ..core.report import write_parity_report, write_report
+from ..core.settings import MatrixSettings, with_overrides
+
+# Blender's own per-tile output goes here, never into the user's folders.
+BLENDER_LOG = Path(tempfile.gettempdir()) / f"ctlab-blender-{os.getpid()}.log"
+
+
+class Cancelled(Exception):
+    """The job was asked to stop (Events.cancelled answered True between two steps)."""
+
+
+def _nothing(*_args) -> None:
+    return None
+
+
+@dataclass
+class Events:
+    progress: Callable = _nothing           # (step, total, message), before each step
+    note: Callable = _nothing               # (message), within a step
+    cancelled: Callable = lambda: False     # polled between steps
+
+    def check(self) -> None:
+        if self.cancelled():
+            raise Cancelled()
+
+    def bake_progress(self, fraction: float, message: str) -> None:
+        self.note(f"bake {100 * fraction:3.0f}%: {message}")
+
+
+# ----------------------------------------------------------------------------------------
+# Renders
+
+def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
+                 pixel_centres: bool = False, engine: str = "cycles", verbose: bool = False,
+                 events: Events | None = None, on_view=None) -> dict:
+    """Build the matrix once in a fresh empty scene and render each view into its folder
+    (``{view: folder}``); the shader compiles once. ``on_view(i, view, description)`` follows
+    each render. Returns the last scene description. ``pixel_centres``: every view as one
+    sample at each pixel centre (no anti-aliasing)."""
+    events = events or Events()
+    for out_dir in out_dirs.values():
+        check_writable(out_dir)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    description = scene_builder.build_matrix(scene, settings, events.bake_progress)
+    node = next((model_node.find(m) for m in bpy.data.materials
+                 if m.get(scene_builder.TAG) and model_node.find(m)), None)
+    log = None if verbose else BLENDER_LOG
+    for i, (view, out_dir) in enumerate(out_dirs.items()):
+        events.check()
+        settings.model.view = view
+        description["model"] = settings.model.as_dict()
+        if node is not None:
+            model_node.set_options(node, settings.model)
+        renderer.configure(scene, settings.shader, view, samples, settings.model.seed,
+                           pixel_centres, engine)
+        description = renderer.render(scene, out_dir, description, log)
+        if on_view:
+            on_view(i, view, description)
+    return description
+
+
+def render_one(settings: MatrixSettings, out_dir: Path, samples: int, **kw) -> dict:
+    """Build the matrix in a fresh empty scene and render its view into out_dir."""
+    return render_views(settings, {settings.model.view: Path(out_dir)}, samples, **kw)
+
+
+# ----------------------------------------------------------------------------------------
+# The main job
+
+SMITH = {"g_model": "smith_ggx_correlated"}
+# The matrix job's renders: (folder, label, shader, IBL mode, settings changed from the
+# base's). The last three are the intermediate configurations of the attribution.
+MATRIX_RENDERS = (
+    ("cook_torrance", "Cook-Torrance (OSL, reference IBL)", "osl", "reference", {}),
+    ("principled", "Principled BSDF", "principled", "reference", {}),
+    ("split_sum", "Cook-Torrance (OSL, split-sum IBL)", "osl", "split_sum", {}),
+    ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity", {}),
+    ("nodes", "Cook-Torrance (node group, split-sum IBL)", "nodes", "split_sum", {}),
+    ("attr_smith", "Cook-Torrance with Smith G", "osl", "reference", SMITH),
+    ("attr_smith_lambert", "Cook-Torrance with Smith G and Lambert diffuse", "osl", "reference",
+     dict(SMITH, diffuse_model="lambert")),
+    ("attr_principled_ggx", "Principled BSDF (single-scatter GGX)", "principled", "reference",
+     {"principled_distribution": "GGX"}))
+# Its comparisons: (folder, render, against). The model against Principled; the baked IBL
+# modes against the reference integration (the accuracy study of the split-sum); the node
+# group against the OSL shader in the same mode (parity); the attribution's steps.
+MATRIX_COMPARISONS = (("compare", "cook_torrance", "principled"),
+                      ("compare_split_sum", "split_sum", "cook_torrance"),
+                      ("compare_unity", "unity", "cook_torrance"),
+                      ("compare_nodes", "nodes", "split_sum"),
+                      ("compare_attr_smith", "attr_smith", "principled"),
+                      ("compare_attr_smith_lambert", "attr_smith_lambert", "principled"),
+                      ("compare_attr_ggx", "attr_smith_lambert", "attr_principled_ggx"))
+# The attribution: the error against Principled after each switch (comparison folder, the
+# switch it follows).
+ATTRIBUTION = (("compare", "seed model"),
+               ("compare_attr_smith", "G: Cook-Torrance to Smith"),
+               ("compare_attr_smith_lambert", "diffuse: Disney to Lambert"),
+               ("compare_attr_ggx", "Principled: multiscatter to single-scatter GGX"))
+# The white furnace (core/energy.py): (folder, G model).
+FURNACE_RENDERS = (("furnace_cook_torrance", "cook_torrance"),
+                   ("furnace_smith", "smith_ggx_correlated"))
+
+
+def matrix_settings(base: MatrixSettings) -> dict:
+    """The main job's renders: folder -> settings, all validated before anything renders."""
+    settings = {}
+    for folder, _, shader, ibl, overrides in MATRIX_RENDERS:
+        settings[folder] = with_overrides(base, dict(overrides, shader=shader, ibl=ibl,
+                                                     view="full"))
+    for folder, g_model in FURNACE_RENDERS:
+        settings[folder] = energy.furnace_settings(g_model, base.model.env_samples,
+                                                   base.model.seed)
+    return settings
+
+
+def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | None = None,
+               verbose: bool = False) -> dict:
+    """The main job: the OSL shader against Principled BSDF, the baked IBL modes against the
+    reference integration, the node group against the OSL shader, the attribution and the
+    white furnace, compared cell by cell, with report.html. Returns the comparisons."""
+    events = events or Events()
+    load_hdri(resolve_hdri(base.hdri))
+    settings = matrix_settings(base)
+    check_writable(out)
+    steps = len(settings) + 2
+    timings, scenes = {}, {}
+    labels = {folder: label for folder, label, *_ in MATRIX_RENDERS}
+    labels.update({folder: f"White furnace, {g} G" for folder, g in FURNACE_RENDERS})
+    for i, (folder, s) in enumerate(settings.items()):
+        events.check()
+        events.progress(i + 1, steps, f"{labels[folder]}: grid {s.rows}x{s.cols}, "
+                                      f"{s.width}x{s.height} px, {samples} samples")
+        scenes[folder] = render_one(s, out / folder, samples, verbose=verbose, events=events)
+        timings[labels[folder]] = scenes[folder]["render_seconds"]
+        events.note(f"{timings[labels[folder]]:.1f} s")
+    events.check()
+    events.progress(steps - 1, steps, "comparing")
+    results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
+               for cmp_dir, a, b in MATRIX_COMPARISONS}
+    furnace = {g: energy.directional_albedo(read_image(out / folder / "render.exr"),
+                                            scenes[folder])
+               for folder, g in FURNACE_RENDERS}
+    events.progress(steps, steps, "writing the report")
+    report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
+                                for cmp_dir, a, b in MATRIX_COMPARISONS[:4]],
+                          scenes["cook_torrance"], timings,
+                          attribution=[(label, results[c]) for c, label in ATTRIBUTION],
+                          furnace=furnace)
+    return {"report": report, "comparisons": results}
+
+
+# ----------------------------------------------------------------------------------------
+# The Principled-parity job
+
+PARITY_HDRIS = ("forest", "studio")
+PARITY_BOUND = 1.0            # every sphere's mean CIEDE2000
+PARITY_MODEL = dict(g_model="smith_ggx_correlated", diffuse_model="lambert", metallic=1.0,
+                    sun_strength=0.0, mutual_shadows=False)
+
+
+def parity_hdris(names: str) -> list:
+    """Blender's bundled HDRIs named in a comma list."""
+    from ..blender.paths import BUNDLED_HDRIS
+    from ..core.errors import UserError
+    chosen = [n.strip() for n in names.split(",") if n.strip()]
+    if not chosen or any(n not in BUNDLED_HDRIS for n in chosen):
+        raise UserError(f"unknown bundled HDRI in --parity-hdris {names!r}; choose from: "
+                        + ", ".join(BUNDLED_HDRIS))
+    return [bundled_hdri(n) for n in chosen]
+
+
+def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
+               events: Events | None = None, verbose: bool = False) -> dict:
+    """With Smith G, Lambert diffuse, metallic 1, the Sun off and no sphere shadowing another,
+    the model is Principled BSDF's single-scatter GGX metal, so our reference integration and
+    Cycles' path tracer must agree up to noise: both rendered under each HDRI and compared.
+    Returns the verdict, the report and each HDRI's comparison."""
+    events = events or Events()
+    jobs = []
+    for hdri in hdris:
+        load_hdri(hdri)
+        ct = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="osl",
+                                       ibl="reference", view="full"))
+        pr = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="principled",
+                                       ibl="reference", view="full",
+                                       principled_distribution="GGX"))
+        jobs.append((Path(hdri).stem, ct, pr))
+    check_writable(out)
+    steps, step, entries = 2 * len(jobs) + 1, 0, []
+    for name, ct, pr in jobs:
+        scenes = {}
+        for folder, s in (("cook_torrance", ct), ("principled", pr)):
+            events.check()
+            step += 1
+            events.progress(step, steps, f"{name}: {folder}, grid {s.rows}x{s.cols}, "
+                                         f"{s.width} px, {samples} samples")
+            scenes[folder] = render_one(s, out / name / folder, samples, verbose=verbose,
+                                        events=events)
+        result = compare(out / name / "cook_torrance", out / name / "principled",
+                         out / name / "compare")
+        worst = max(c["ciede2000_mean"] for c in result["cells"])
+        events.note(f"{name}: mean CIEDE2000 {result['overall']['ciede2000_mean']:.2f}, "
+                    f"worst sphere {worst:.2f} (bound {PARITY_BOUND})")
+        entries.append((name, result, scenes["cook_torrance"]))
+    events.progress(steps, steps, "writing the report")
+    report = write_parity_report(out, entries, PARITY_BOUND)
+    holds = all(max(c["ciede2000_mean"] for c in r["cells"]) <= PARITY_BOUND
+                for _, r, _ in entries)
+    return {"holds": holds, "report": report, "comparisons": {n: r for n, r, _ in entries}}
+
+
+# ----------------------------------------------------------------------------------------
+# The bake
+
+def run_bake(hdri: Path, out: Path | None = None, events: Events | None = None,
+             warn=None) -> Path:
+    """Bake the split-sum files of an HDRI (cached by content hash); with ``out`` copy them
+    there. Returns the folder holding them."""
+    events = events or Events()
+    if out:
+        check_writable(out)
+    folder = ibl_bake.bake(Path(hdri), events.bake_progress, warn)
+    if out:
+        ibl_bake.export(folder, Path(out))
+        folder = Path(out)
+    return folder

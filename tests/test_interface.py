@@ -1,0 +1,102 @@
+"""The model's interface is written once (addon/core/model.py): the OSL shader's parameters,
+the node group's sockets and the views of both implementations must be exactly that table."""
+
+import re
+import tomllib
+
+import bpy
+import pytest
+
+from conftest import ROOT
+from addon.blender import model_node, node_group, osl_shader
+from addon.core.model import (GROUP_INPUTS, GROUP_OUTPUTS, INPUTS, OPTION_VALUES, OSL_INPUTS,
+                              OSL_OUTPUT, VIEWS)
+
+pytestmark = pytest.mark.quick
+SHADER = (ROOT / "osl" / "cook_torrance.osl").read_text()
+
+
+@pytest.fixture(scope="module")
+def osl_node():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    mat = bpy.data.materials.new("interface")
+    if mat.node_tree is None:
+        mat.use_nodes = True
+    node = mat.node_tree.nodes.new("ShaderNodeScript")
+    osl_shader.compile_script_node(node)
+    return node
+
+
+def _value(sock):
+    v = sock.default_value
+    return tuple(v) if hasattr(v, "__len__") and not isinstance(v, str) else v
+
+
+def test_the_osl_shaders_parameters_are_the_table(osl_node):
+    """Every parameter the compiled shader has is in the table under its name, with the
+    table's label and default; and every OSL input of the table is a parameter."""
+    got = {s.identifier: s for s in osl_node.inputs}
+    assert set(got) == {i.osl for i in OSL_INPUTS}
+    for i in OSL_INPUTS:
+        sock = got[i.osl]
+        assert sock.name == i.label, i.key
+        if i.key in ("normal", "tex_bottom_up"):
+            continue      # the geometry's N; set for the running Blender when compiled
+        want = i.values[i.default] if i.values else i.default
+        have = _value(sock)
+        if isinstance(want, tuple):
+            assert have == pytest.approx(want[:len(have)]), i.key
+        else:
+            assert have == pytest.approx(want) if isinstance(want, float) else have == want, \
+                (i.key, have, want)
+    assert [s.identifier for s in osl_node.outputs] == [OSL_OUTPUT]
+
+
+def test_the_osl_shader_offers_exactly_the_views_and_switch_values():
+    """The string values the shader compares its view and switches with are the table's."""
+    code = re.sub(r"//[^\n]*", "", SHADER)
+    views = set(re.findall(r'\bview\s*[!=]=\s*"(\w+)"', code))
+    assert views == set(VIEWS)
+    for key in ("g_model", "diffuse_model", "units", "ibl"):
+        compared = set(re.findall(rf'\b{key}\s*[!=]=\s*"(\w+)"', code))
+        assert compared and compared <= set(OPTION_VALUES[key]), (key, compared)
+
+
+def test_the_node_groups_sockets_are_the_table():
+    group = node_group.build_group("interface test")
+    inputs = [s for s in group.interface.items_tree
+              if s.item_type == 'SOCKET' and s.in_out == 'INPUT']
+    outputs = [s for s in group.interface.items_tree
+               if s.item_type == 'SOCKET' and s.in_out == 'OUTPUT']
+    assert [s.name for s in inputs] == [i.group for i in GROUP_INPUTS]
+    assert [s.socket_type for s in inputs] == [node_group.SOCKET_TYPES[i.kind]
+                                                for i in GROUP_INPUTS]
+    for sock, i in zip(inputs, GROUP_INPUTS):
+        assert sock.description == i.tooltip
+        if i.kind in ("FLOAT", "INT"):
+            assert (sock.min_value, sock.max_value) == pytest.approx((i.min, i.max)), i.key
+    assert [(s.name, s.socket_type) for s in outputs] == \
+        [(n, node_group.SOCKET_TYPES[k]) for n, k in GROUP_OUTPUTS]
+    data = tomllib.loads((ROOT / "node_groups" / "cook_torrance.toml").read_text())
+    assert list(data["views"]) == list(VIEWS)
+    used = set(re.findall(r"in\.([A-Za-z][\w ]*?)(?=[,)])", str(data)))
+    assert used <= {i.group for i in GROUP_INPUTS}, used - {i.group for i in GROUP_INPUTS}
+    bpy.data.node_groups.remove(group)
+
+
+def test_every_option_round_trips_through_both_implementations(osl_node):
+    """model_node writes and reads every value of every switch and view on both; the node
+    group refuses the reference indirect light with a message."""
+    from addon.core.errors import UserError
+    tree = osl_node.id_data
+    group = model_node.new_node(tree, "nodes")
+    for node in (osl_node, group):
+        for key, values in OPTION_VALUES.items():
+            for value in values:
+                if model_node.implementation(node) == "nodes" and value == "reference":
+                    with pytest.raises(UserError, match="no 'reference' indirect light"):
+                        model_node.set_option(node, key, value)
+                    continue
+                model_node.set_option(node, key, value)
+                assert model_node.get_option(node, key) == value
+    assert {i.key for i in INPUTS} >= set(OPTION_VALUES)

@@ -1,0 +1,112 @@
+"""The architecture, checked from the source: four layers that import only downward (core <
+blender < jobs < ui), a core without Blender, no import cycle among the modules, and a
+repository that cites its own documents (no path outside it, no issue numbers)."""
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+
+pytestmark = pytest.mark.quick
+ADDON = ROOT / "addon"
+LAYERS = ("core", "blender", "jobs", "ui")
+BLENDER_MODULES = {"bpy", "mathutils", "bmesh", "gpu", "cycles", "bl_math", "addon_utils"}
+
+
+def _modules():
+    """{(layer, module): [(imported layer, imported module or None, line)]} from every import
+    of every module, top-level or inside functions."""
+    graph = {}
+    for layer in LAYERS:
+        for path in sorted((ADDON / layer).glob("*.py")):
+            name = (layer, path.stem)
+            edges = graph.setdefault(name, [])
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, ast.ImportFrom) and node.level:
+                    parts = (node.module or "").split(".") if node.module else []
+                    if node.level == 1:                    # the same layer
+                        target_layer, rest = layer, parts
+                    else:                                  # ..layer.module
+                        target_layer, rest = parts[0], parts[1:]
+                    if rest:
+                        edges.append((target_layer, rest[0], node.lineno))
+                    else:
+                        edges += [(target_layer, a.name, node.lineno) for a in node.names]
+                elif isinstance(node, ast.Import):
+                    edges += [("external", a.name.split(".")[0], node.lineno) for a in node.names]
+                elif isinstance(node, ast.ImportFrom):
+                    edges.append(("external", (node.module or "").split(".")[0], node.lineno))
+    return graph
+
+
+GRAPH = _modules()
+
+
+def test_every_module_lives_in_a_layer():
+    loose = [p.name for p in ADDON.glob("*.py") if p.name != "__init__.py"]
+    assert not loose, f"modules outside the four layers: {loose}"
+
+
+def test_imports_only_go_down():
+    rank = {layer: i for i, layer in enumerate(LAYERS)}
+    upward = [f"{layer}.{mod}:{line} imports {tl}.{tm}"
+              for (layer, mod), edges in GRAPH.items() for tl, tm, line in edges
+              if tl in rank and rank[tl] > rank[layer]]
+    assert not upward, upward
+
+
+def test_the_core_needs_no_blender():
+    found = [f"core.{mod}:{line} imports {tm}" for (layer, mod), edges in GRAPH.items()
+             if layer == "core" for tl, tm, line in edges
+             if tl == "external" and tm in BLENDER_MODULES]
+    assert not found, found
+
+
+def test_no_import_cycle():
+    modules = {m for m in GRAPH}
+    succ = {m: {(tl, tm) for tl, tm, _ in edges if (tl, tm) in modules and (tl, tm) != m}
+            for m, edges in GRAPH.items()}
+    state, path = {}, []
+
+    def visit(m):
+        state[m] = "open"
+        path.append(m)
+        for n in succ[m]:
+            if state.get(n) == "open":
+                cycle = path[path.index(n):] + [n]
+                raise AssertionError(" -> ".join(".".join(x) for x in cycle))
+            if n not in state:
+                visit(n)
+        path.pop()
+        state[m] = "done"
+    for m in sorted(modules):
+        if m not in state:
+            visit(m)
+
+
+def _repository_files():
+    skip = {".git", ".venv", "out", "dist", "__pycache__", ".pytest_cache"}
+    for path in ROOT.rglob("*"):
+        rel = path.relative_to(ROOT)
+        if path.is_file() and not any(p in skip or p.startswith(".venv") for p in rel.parts) \
+                and path.suffix in (".py", ".osl", ".toml", ".md", ".sh", ".txt", "") \
+                and rel.parts[0] != ".git":
+            yield rel, path
+
+
+def test_the_repository_cites_only_itself():
+    """Nothing names a folder outside the repository (the model is docs/model.md) or an
+    issue of a tracker a clone does not have."""
+    outside = re.compile(r"\bshared/|\bSPEC\.md\b")
+    issue = re.compile(r"\b[Ii]ssues? #?\d+\b|\(#\d+\)")
+    found = []
+    for rel, path in _repository_files():
+        if rel == Path("tests/test_layers.py"):
+            continue
+        for n, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+            if outside.search(line) or issue.search(line):
+                found.append(f"{rel}:{n}: {line.strip()[:80]}")
+    assert not found, "\n".join(found)
