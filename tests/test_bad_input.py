@@ -46,6 +46,38 @@ CLI_CASES = {
     "compare-not-render": (["compare", "@EMPTY", "@EMPTY"], "is not a render folder"),
     "parity-hdri-unknown": (["matrix", "--parity", "--parity-hdris", "moon"],
                             "unknown bundled HDRI in --parity-hdris 'moon'"),
+    # numbers: finite in float32, in Blender's range
+    "strength-overflow": (RENDER + ["--hdri-strength", "1e39"], "hdri strength 1e+39 out of range"),
+    "strength-huge": (RENDER + ["--sun-strength", "2e6"], "sun strength 2000000.0 out of range"),
+    "rotation-nonfinite": (RENDER + ["--hdri-rotation", "inf"], "hdri rotation inf out of range"),
+    "seed-negative": (RENDER + ["--seed", "-1"], "seed -1 out of range; use 0 to 2147483647"),
+    "seed-huge": (RENDER + ["--seed", "2147483648"], "seed 2147483648 out of range"),
+    "sun-dir-nan": (RENDER + ["--sun-dir", "nan,0,1"], "malformed sun direction 'nan,0,1'"),
+    "albedo-negative": (RENDER + ["--albedo", "-0.1,0.5,0.5"], "out of range; use three values"),
+    "geometry-too-small": (RENDER[:3] + ["--grid", "16x16", "--size", "16"],
+                           "image size 16 is too small for a 16x16 grid"),
+    "matrix-geometry": (["matrix", "--grid", "9x9", "--size", "32"],
+                        "image size 32 is too small for a 9x9 grid"),
+    # argparse, on one line
+    "option-value-missing": (["render", "--shader"], "argument --shader: expected one argument"),
+    "option-unknown": (RENDER + ["--colour", "red"], "unrecognized arguments: --colour red"),
+    # paths
+    "out-empty": (["render", "--shader", "osl", "--out", ""], "empty --out"),
+    "out-too-long": (["render", "--shader", "osl", "--out", "@LONG"],
+                     "--out is longer than this system allows"),
+    "out-is-input": (RENDER + ["--hdri", "@HDRI_IN_OUT", "--out", "@OUT_WITH_HDRI"],
+                     "is an input of this job"),
+    "bake-out-is-input": (["bake", "@HDRI_IN_OUT_BAKE", "--out", "@OUT_WITH_BAKE_HDRI"],
+                          "is an input of this job"),
+    # compare: both folders checked whole before anything is written
+    "compare-truncated": (["compare", "@RENDER:truncated", "@RENDER:good"],
+                          "cannot read image"),
+    "compare-bad-json": (["compare", "@RENDER:good", "@RENDER:badjson"], "is not valid JSON"),
+    "compare-bad-scene": (["compare", "@RENDER:schema", "@RENDER:good"],
+                          "is not a render's description: 'width' is not a positive"),
+    "compare-nan": (["compare", "@RENDER:nan", "@RENDER:good"], "holds 1 NaN/Inf pixel(s)"),
+    "compare-size-mismatch": (["compare", "@RENDER:wrongsize", "@RENDER:good"],
+                              "but scene.json says 32x32"),
 }
 OPERATOR_CASES = ("op-matrix-hdri", "op-bake-hdri", "op-convert-not-principled",
                   "op-convert-not-model", "op-convert-no-material", "op-comparison-running")
@@ -57,17 +89,52 @@ def test_the_docs_table_and_these_tests_list_the_same_cases():
     assert documented == set(CLI_CASES) | set(OPERATOR_CASES)
 
 
+def fake_render(folder, variant="good", size=32):
+    """A render folder as `ctlab render` writes one (render.exr, render.png, scene.json), made
+    directly, or damaged as ``variant`` says."""
+    import json
+    import numpy as np
+    from addon.core.compare import write_png
+    from addon.core.hdri import write_float_exr
+    folder.mkdir(parents=True)
+    img = np.full((size, size, 3), 0.5, np.float32)
+    if variant == "nan":
+        img[3, 4, 1] = np.nan
+    write_float_exr(folder / "render.exr", img if variant != "wrongsize" else img[:, :16])
+    write_png(folder / "render.png", np.clip(np.nan_to_num(img), 0, 1))
+    if variant == "truncated":
+        data = (folder / "render.exr").read_bytes()
+        (folder / "render.exr").write_bytes(data[: len(data) // 2])
+    scene = {"width": size, "height": size, "cells": [
+        {"row": 0, "col": 0, "metallic": 0.0, "smoothness": 1.0, "center_px": [16, 16],
+         "radius_px": 10.0}]}
+    text = {"badjson": "{not json", "schema": "{}"}.get(variant, json.dumps(scene))
+    (folder / "scene.json").write_text(text)
+    return folder
+
+
 def _argv(case, tmp_path):
+    import numpy as np
+    from addon.core.hdri import write_float_exr
     images = bad_images(tmp_path)
     blocker = tmp_path / "a-file"
     blocker.write_text("x")
     (tmp_path / "empty").mkdir()
     from addon.blender.paths import bundled_hdri
-    subs = {"@FOREST": str(bundled_hdri("forest")), "@EMPTY": str(tmp_path / "empty")}
+    subs = {"@FOREST": str(bundled_hdri("forest")), "@EMPTY": str(tmp_path / "empty"),
+            "@LONG": str(tmp_path / ("x" * 300))}
+    for name, file in (("@OUT_WITH_HDRI", "render.exr"), ("@OUT_WITH_BAKE_HDRI", "specular_0.exr")):
+        folder = tmp_path / name.strip("@").lower()
+        folder.mkdir()
+        write_float_exr(folder / file, np.ones((32, 64, 3), np.float32))
+        subs[name] = str(folder)
+        subs["@HDRI_IN_OUT" + ("_BAKE" if "BAKE" in name else "")] = str(folder / file)
     argv = []
     for a in CLI_CASES[case][0]:
         if a.startswith("@BAD:"):
             a = str(images[a[5:]])
+        elif a.startswith("@RENDER:"):
+            a = str(fake_render(tmp_path / f"render-{a[8:]}-{len(argv)}", a[8:]))
         argv.append(subs.get(a, a.replace("@FILE", str(blocker))))
     if argv[0] in ("render", "matrix") and "--out" not in argv:
         argv += ["--out", str(tmp_path / "out")]

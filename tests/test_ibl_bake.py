@@ -167,7 +167,7 @@ def test_a_failed_bake_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
     monkeypatch.setattr(ibl_bake, "write_float_exr", failing_write)
     with pytest.raises(UserError, match="simulated"):
         ibl_bake.bake(path)
-    cache = ibl_bake.cache_dir()
+    cache = ibl_bake.cache.cache_dir()
     from addon.core.hdri import file_hash
     leftovers = [p.name for p in cache.iterdir() if file_hash(path) in p.name or "partial" in p.name]
     assert leftovers == []

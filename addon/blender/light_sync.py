@@ -10,14 +10,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import bpy
-import numpy as np
 
 from . import model_node
 from .drivers import world_nodes
 from ..core import env_importance, ibl_bake
-from ..core.cache import cache_dir
 from ..core.errors import UserError
-from ..core.hdri import load_hdri, write_float_exr
+from ..core.hdri import load_hdri, uniform_world
 from ..core.model import BY_KEY
 
 MATRIX_TAG = "ctlab_matrix"       # the matrix builder manages its own material (scene_builder)
@@ -59,11 +57,7 @@ def environment_file(scene: bpy.types.Scene):
     path = world_hdri_path(scene)
     if path:
         return Path(path)
-    colour = _world_colour(scene.world)
-    target = cache_dir() / ("uniform-%.6g-%.6g-%.6g.exr" % colour)
-    if not target.is_file():
-        write_float_exr(target, np.broadcast_to(np.float32(colour), (8, 16, 3)).copy())
-    return target
+    return uniform_world(_world_colour(scene.world))
 
 
 class Environment:

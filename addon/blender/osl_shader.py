@@ -6,6 +6,8 @@ read-only, and external-mode script nodes write the compiled .oso next to the .o
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 from pathlib import Path
 
 import bpy
@@ -48,7 +50,15 @@ def compile_script_node(node: bpy.types.ShaderNodeScript) -> None:
         if 'ERROR' in kind:
             errors.append(message)
 
-    cycles_osl.update_script_node(node, report)
+    # Cycles compiles an internal script through temporary .osl and .oso files and leaves the
+    # .oso (the bytecode is kept in the node): compile in a private folder, removed after.
+    saved = tempfile.tempdir
+    tempfile.tempdir = tempfile.mkdtemp(prefix="ctlab-osl-")
+    try:
+        cycles_osl.update_script_node(node, report)
+    finally:
+        shutil.rmtree(tempfile.tempdir, ignore_errors=True)
+        tempfile.tempdir = saved
     if errors or "BSDF" not in node.outputs:
         raise UserError("the Cook-Torrance OSL shader failed to compile: "
                         + ("; ".join(errors) or "no output socket") + " (see the console)")

@@ -12,7 +12,6 @@ render.png and scene.json.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
 import time
@@ -22,7 +21,7 @@ import bpy
 
 from .compat import eevee_engine_id
 from ..core.errors import UserError
-from ..core.files import atomic_paths, check_writable
+from ..core.files import atomic_paths, check_writable, json_text
 from ..core.model import AGX_VIEWS, EXACT_VIEWS
 
 OUTPUT_FILES = ("render.exr", "render.png", "scene.json")
@@ -160,7 +159,7 @@ def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=No
     elapsed = time.perf_counter() - start
     result = bpy.data.images.get("Render Result")
     if result is None:
-        raise UserError("Cycles produced no image (see the log)")
+        raise UserError("Blender produced no image (run with --verbose to see its output)")
     with atomic_paths(*(out_dir / name for name in OUTPUT_FILES)) as (exr, png, js):
         with quiet(log_path):
             _save(scene, result, exr, "exr")
@@ -171,5 +170,5 @@ def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=No
                            engine=scene.render.engine,
                            view_transform=scene.view_settings.view_transform,
                            blender=bpy.app.version_string)
-        js.write_text(json.dumps(description, indent=2))
+        js.write_text(json_text(description))
     return description

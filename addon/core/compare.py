@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from .files import atomic_path, check_writable, write_json
+from .files import atomic_path, check_writable, finite_json, refuse_overwrite, write_json
 from .hdri import oiio
 from .model import REC709_LUMINANCE
 
@@ -26,12 +26,25 @@ CELL_FRACTION = 0.95
 
 
 def read_image(path: Path) -> np.ndarray:
-    """An image as float32 (h, w, 3) through OpenImageIO."""
+    """An image as float32 (h, w, 3) through OpenImageIO, read whole: a truncated or corrupt
+    file is a UserError, not zeros."""
     OIIO = oiio()
-    buf = OIIO.ImageBuf(str(path))
-    if buf.has_error or buf.spec().nchannels < 3:
-        raise UserError(f"cannot read image {path}: {buf.geterror().strip() or 'not RGB'}")
-    return np.asarray(buf.get_pixels(OIIO.FLOAT))[:, :, :3].astype(np.float32)
+    inp = OIIO.ImageInput.open(str(path))
+    if inp is None:
+        raise UserError(f"cannot read image {path}: {OIIO.geterror().strip() or 'unknown format'}")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(0, 0, 0, 3, OIIO.FLOAT) if spec.nchannels >= 3 else None
+        failed = inp.has_error
+        detail = inp.geterror().strip() if failed else ""
+    finally:
+        inp.close()
+    if spec.nchannels < 3:
+        raise UserError(f"cannot read image {path}: {spec.nchannels} channel(s), not RGB")
+    if pixels is None or failed:
+        raise UserError(f"cannot read image {path}: the pixel data is corrupt or truncated"
+                        + (f" ({detail})" if detail else ""))
+    return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
 
 
 def write_png(path: Path, rgb01: np.ndarray) -> None:
@@ -135,14 +148,63 @@ def heatmap(de: np.ndarray, vmax: float = 10.0) -> np.ndarray:
     return stops[i] * (1 - f) + stops[i + 1] * f
 
 
+RENDER_FILES = ("render.exr", "render.png", "scene.json")
+
+
+def _scene_problem(scene) -> str | None:
+    """What is wrong with a scene.json's content, or None (the keys compare reads)."""
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    if not isinstance(scene, dict):
+        return "it is not a JSON object"
+    for key in ("width", "height"):
+        if not (isinstance(scene.get(key), int) and 0 < scene[key] <= 65536):
+            return f"'{key}' is not a positive image size"
+    cells = scene.get("cells")
+    if not isinstance(cells, list) or not cells:
+        return "'cells' is not a non-empty list"
+    for i, c in enumerate(cells):
+        if not isinstance(c, dict):
+            return f"cell {i} is not an object"
+        for key in ("row", "col"):
+            if not isinstance(c.get(key), int):
+                return f"cell {i} has no integer '{key}'"
+        for key in ("metallic", "smoothness", "radius_px"):
+            if not number(c.get(key)):
+                return f"cell {i} has no finite '{key}'"
+        centre = c.get("center_px")
+        if not (isinstance(centre, list) and len(centre) == 2 and all(map(number, centre))):
+            return f"cell {i} has no 'center_px' [x, y]"
+    return None
+
+
 def load_render(folder: Path):
+    """A render folder's images and scene, each checked: the three files there, scene.json
+    well-formed, both images whole, of the scene's size and free of NaN/Inf."""
     folder = Path(folder)
-    for name in ("render.exr", "render.png", "scene.json"):
+    for name in RENDER_FILES:
         if not (folder / name).is_file():
             raise UserError(f"{folder} is not a render folder: {name} is missing "
                             "(make it with 'ctlab render')")
-    scene = json.loads((folder / "scene.json").read_text())
-    return read_image(folder / "render.exr"), read_image(folder / "render.png"), scene
+    try:
+        scene = json.loads((folder / "scene.json").read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise UserError(f"{folder / 'scene.json'} is not valid JSON ({exc}); render the "
+                        "folder again") from None
+    problem = _scene_problem(scene)
+    if problem:
+        raise UserError(f"{folder / 'scene.json'} is not a render's description: {problem}")
+    images = []
+    for name in ("render.exr", "render.png"):
+        img = read_image(folder / name)
+        if img.shape[:2] != (scene["height"], scene["width"]):
+            raise UserError(f"{folder / name} is {img.shape[1]}x{img.shape[0]}, but scene.json "
+                            f"says {scene['width']}x{scene['height']}; render the folder again")
+        bad = int((~np.isfinite(img)).any(axis=2).sum())
+        if bad:
+            raise UserError(f"{folder / name} holds {bad} NaN/Inf pixel(s); it cannot be compared")
+        images.append(img)
+    return images[0], images[1], scene
 
 
 def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
@@ -155,19 +217,24 @@ def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
     cells_a = [(c["row"], c["col"]) for c in scene_a["cells"]]
     if cells_a != [(c["row"], c["col"]) for c in scene_b["cells"]]:
         raise UserError("renders have different sphere grids; render both with the same --grid")
+    masks = [cell_mask(lin_a.shape, cell) for cell in scene_a["cells"]]
+    for cell, mask in zip(scene_a["cells"], masks):
+        if not mask.any():
+            raise UserError(f"sphere {cell['row']},{cell['col']} of {dir_a} covers no pixel; "
+                            "render with a larger --size or a smaller --grid")
     out_dir = check_writable(out_dir)
+    refuse_overwrite([Path(d) / n for d in (dir_a, dir_b) for n in RENDER_FILES],
+                     [out_dir / "metrics.json", out_dir / "diff.png"])
     de = ciede2000(srgb_to_lab(disp_a), srgb_to_lab(disp_b))
-    all_mask = np.zeros(lin_a.shape[:2], dtype=bool)
-    cells = []
-    for cell in scene_a["cells"]:
-        mask = cell_mask(lin_a.shape, cell)
-        all_mask |= mask
-        cells.append({k: cell[k] for k in ("row", "col", "metallic", "smoothness")}
-                     | metrics(lin_a, lin_b, disp_a, disp_b, de, mask))
+    all_mask = np.logical_or.reduce(masks)
+    cells = [{k: cell[k] for k in ("row", "col", "metallic", "smoothness")}
+             | metrics(lin_a, lin_b, disp_a, disp_b, de, mask)
+             for cell, mask in zip(scene_a["cells"], masks)]
     result = {"a": str(dir_a), "b": str(dir_b),
               "a_shader": scene_a.get("shader"), "b_shader": scene_b.get("shader"),
               "overall": metrics(lin_a, lin_b, disp_a, disp_b, de, all_mask),
               "heatmap_max_ciede2000": 10.0, "cells": cells}
     write_png(out_dir / "diff.png", heatmap(de))
+    result = finite_json(result)       # standard JSON: an infinite PSNR (identical) is null
     write_json(out_dir / "metrics.json", result)
     return result

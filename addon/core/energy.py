@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .hdri import uniform_world
 from .model import ModelOptions
 
 ROWS = 6                          # smoothness 1, 0.8, ... 0
@@ -25,12 +26,7 @@ WIDTH, HEIGHT = 64, 64 * ROWS
 
 def white_world() -> Path:
     """A uniform world of radiance 1 (kept in the cache)."""
-    from .cache import cache_dir
-    from .hdri import write_float_exr
-    path = cache_dir() / "white-furnace.exr"
-    if not path.is_file():
-        write_float_exr(path, np.ones((32, 64, 3), dtype=np.float32))
-    return path
+    return uniform_world((1.0, 1.0, 1.0))
 
 
 def furnace_settings(g_model: str, env_samples: int = 4, seed: int = 0):

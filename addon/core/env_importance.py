@@ -25,8 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cache import cache_dir
-from .files import atomic_folder
+from . import cache
 from .hdri import file_hash, load_hdri, write_float_exr
 from .ibl_bake import area_resample
 from .model import REC709_LUMINANCE
@@ -85,15 +84,13 @@ def tables_for(hdri_path) -> dict:
     hdri_path = Path(hdri_path)
     key = (f"env-importance-v{VERSION}-{TILE_ROWS}x{TILE_COLS}-{TABLE_SIZE}-"
            f"{file_hash(hdri_path)}")
-    folder = cache_dir() / key
-    names = {"marginal": folder / "marginal.exr", "conditional": folder / "conditional.exr",
-             "pdf": folder / "pdf.exr"}
-    if all(p.is_file() for p in names.values()):
-        return {k: str(v) for k, v in names.items()}
-    tables = dict(zip(names, build_tables(tile_weights(load_hdri(hdri_path)))))
+    names = ("marginal", "conditional", "pdf")
+    folder = cache.lookup(key)
+    if folder is None:
+        tables = dict(zip(names, build_tables(tile_weights(load_hdri(hdri_path)))))
 
-    def fill(staging: Path):
-        for name, path in names.items():
-            write_float_exr(staging / path.name, tables[name])
-    atomic_folder(folder, fill)
-    return {k: str(v) for k, v in names.items()}
+        def fill(staging: Path):
+            for name in names:
+                write_float_exr(staging / f"{name}.exr", tables[name])
+        folder = cache.build(key, fill)
+    return {name: str(folder / f"{name}.exr") for name in names}

@@ -120,3 +120,14 @@ def write_float_exr(path: Path, pixels: np.ndarray) -> None:
         out.close()
         if not ok:
             raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+
+
+def uniform_world(colour) -> Path:
+    """A small equirectangular image of one colour (a world without an image, the white
+    furnace), kept in the cache."""
+    from . import cache
+    colour = tuple(float(c) for c in colour[:3])
+    key = "uniform-%.6g-%.6g-%.6g" % colour
+    folder = cache.cached(key, lambda stage: write_float_exr(
+        stage / "world.exr", np.broadcast_to(np.float32(colour), (8, 16, 3)).copy()))
+    return folder / "world.exr"

@@ -38,8 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .cache import cache_dir
-from .files import atomic_folder, check_writable, copy_file, write_json
+from . import cache
+from .files import check_writable, copy_file, refuse_overwrite, write_json
 from .hdri import file_hash, load_hdri, write_float_exr
 from .model import G_MODELS, MIN_ALPHA
 
@@ -250,10 +250,10 @@ def _params_key() -> str:
 def dfg_path(g_model: str) -> Path:
     """The DFG table of one G option (independent of the HDRI), built once per cache."""
     size, samples = DFG_SIZE, DFG_SAMPLES[g_model]
-    path = cache_dir() / f"dfg-v{VERSION}-{g_model}-{size}-{samples[0]}x{samples[1]}.exr"
-    if not path.is_file():
-        write_float_exr(path, dfg_table(g_model))
-    return path
+    key = f"dfg-v{VERSION}-{g_model}-{size}-{samples[0]}x{samples[1]}"
+    folder = cache.cached(key, lambda stage: write_float_exr(stage / "dfg.exr",
+                                                              dfg_table(g_model)))
+    return folder / "dfg.exr"
 
 
 def _report(progress, fraction, message):
@@ -272,12 +272,11 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
         load_hdri(hdri_path)                    # raises the standard "not found" message
     source_hash = file_hash(hdri_path)
     name = f"ibl-v{VERSION}-{_params_key()}-{source_hash}"
-    folder = cache_dir(create=False) / name
-    if (folder / INFO_FILE).is_file():
+    folder = cache.lookup(name)
+    if folder is not None:
         _report(progress, 1.0, f"cached: {folder}")
         return folder
     pixels, repaired = read_hdri(hdri_path, repair=True)      # validates before any write
-    folder = cache_dir() / name
     if repaired and warn is not None:
         warn(f"{hdri_path} holds {repaired} NaN/Inf pixel(s); they were set to 0 for the bake")
     dfg = {}
@@ -328,13 +327,23 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
                 "seconds": round(time.perf_counter() - start, 3), "timings": timings}
         write_json(stage / INFO_FILE, info)
 
-    atomic_folder(folder, fill)
+    folder = cache.build(name, fill)
     _report(progress, 1.0, f"baked in {time.perf_counter() - start:.2f} s: {folder}")
     return folder
 
 
-def export(folder: Path, out_dir: Path) -> None:
-    """Copy a bake folder's files into out_dir, each whole or not at all."""
+def file_names() -> list:
+    """The files of a bake, as ``export`` copies them."""
+    return ([level_file(m) for m in range(LEVEL_COUNT)] + [IRRADIANCE_FILE, INFO_FILE]
+            + [dfg_file(g) for g in G_MODELS])
+
+
+def export(folder: Path, out_dir: Path, source=None) -> None:
+    """Copy a bake folder's files into out_dir, each whole or not at all, never over the
+    ``source`` HDRI."""
     out_dir = check_writable(out_dir)
-    for f in sorted(Path(folder).iterdir()):
+    files = sorted(f for f in Path(folder).iterdir()
+                   if not f.name.startswith(".") and f.name != cache.MANIFEST)
+    refuse_overwrite([source], [out_dir / f.name for f in files])
+    for f in files:
         copy_file(f, out_dir / f.name)

@@ -129,8 +129,8 @@ OSL_ONLY = (
           min=1, max=1024),
     Input("env_visibility", "Env Visibility", "INT", 0,
           "Trace environment samples for occlusion", osl="env_visibility"),
-    Input("seed", "Seed", "INT", 0, "Offsets the integrator's random numbers", osl="seed",
-          min=-(2 ** 31), max=2 ** 31 - 1),
+    Input("seed", "Seed", "INT", 0, "The render's seed (Cycles' range)", osl="seed",
+          min=0, max=2 ** 31 - 1),
     Input("tex_bottom_up", "Texture Rows Bottom-Up", "INT", 0,
           "Whether this Blender's OSL texture() counts rows from the bottom (5.2 and later)",
           osl="tex_bottom_up"),
@@ -190,9 +190,10 @@ class ModelOptions:
                 what = i.label if i.key in ("g_model", "ibl") else i.label.lower()
                 raise UserError(f"unknown {what} {value!r}; choose one of: "
                                 f"{', '.join(i.values)}")
-        lo, hi = BY_KEY["env_samples"].min, BY_KEY["env_samples"].max
-        if not lo <= self.env_samples <= hi:
-            raise UserError(f"env samples {self.env_samples} out of range; use {lo} to {hi}")
+        for key in ("env_samples", "seed"):
+            lo, hi, value = int(BY_KEY[key].min), int(BY_KEY[key].max), getattr(self, key)
+            if not lo <= value <= hi:
+                raise UserError(f"{key.replace('_', ' ')} {value} out of range; use {lo} to {hi}")
 
     def as_dict(self):
         return dict(vars(self))

@@ -20,12 +20,12 @@ def _table(metrics: dict) -> str:
             f"<tr><td>{c['row']}</td><td>{c['col']}</td><td>{c['metallic']:.3f}</td>"
             f"<td>{c['smoothness']:.3f}</td><td>{c['mae']:.4f}</td><td>{c['rmse']:.4f}</td>"
             f"<td>{_fmt(c['rel_luminance_error'], '+.1%')}</td>"
-            f"<td>{c['psnr_db']:.2f}</td><td>{c['ciede2000_mean']:.2f}</td>"
+            f"<td>{_fmt(c['psnr_db'], '.2f')}</td><td>{c['ciede2000_mean']:.2f}</td>"
             f"<td>{c['ciede2000_p95']:.2f}</td></tr>")
     o = metrics["overall"]
     rows.append(f"<tr class='all'><td colspan=4>all cells</td><td>{o['mae']:.4f}</td>"
                 f"<td>{o['rmse']:.4f}</td><td>{_fmt(o['rel_luminance_error'], '+.1%')}</td>"
-                f"<td>{o['psnr_db']:.2f}</td>"
+                f"<td>{_fmt(o['psnr_db'], '.2f')}</td>"
                 f"<td>{o['ciede2000_mean']:.2f}</td><td>{o['ciede2000_p95']:.2f}</td></tr>")
     head = ("<tr><th>row</th><th>col</th><th>metallic</th><th>smoothness</th><th>MAE</th>"
             "<th>RMSE</th><th>rel. luminance</th><th>PSNR (dB)</th><th>&Delta;E00 mean</th><th>&Delta;E00 p95</th></tr>")
@@ -65,7 +65,7 @@ def _figures(a_dir, b_dir, cmp_dir, a_label, b_label, metrics) -> str:
 def _summary(metrics: dict) -> str:
     o = metrics["overall"]
     return (f"Over all sphere pixels: mean &Delta;E00 <b>{o['ciede2000_mean']:.2f}</b> "
-            f"(95th percentile {o['ciede2000_p95']:.2f}), PSNR {o['psnr_db']:.2f} dB (displayed "
+            f"(95th percentile {o['ciede2000_p95']:.2f}), PSNR {_fmt(o['psnr_db'], '.2f')} dB (displayed "
             f"colours), relative luminance error {_fmt(o['rel_luminance_error'], '+.1%')}, MAE "
             f"{o['mae']:.4f} and RMSE {o['rmse']:.4f} (linear values).")
 

@@ -16,6 +16,8 @@ from .model import BAKED_IBL_MODES, DEFAULT_ALBEDO, ModelOptions
 SHADERS = ("osl", "nodes", "principled")     # the OSL shader, the node group, the reference
 MAX_GRID = 16
 SIZE_RANGE = (16, 4096)
+MAX_STRENGTH = 1e6          # the node group's inputs' maximum (core.model.LIGHTING)
+MIN_SPHERE_PX = 3.0         # a sphere's radius in pixels, so that the comparison has cells
 CAMERA_DISTANCE = 20.0
 TO_CAMERA = (0.0, -1.0, 0.0)
 
@@ -41,8 +43,16 @@ def matrix_values(rows: int, cols: int):
 
 
 def normalized(v) -> tuple:
-    length = math.sqrt(sum(x * x for x in v))
+    length = math.hypot(*v)                  # no overflow for huge components
     return tuple(x / length for x in v)
+
+
+def _finite32(x) -> bool:
+    """Finite as a float32 (what Blender stores): 1e39 is not."""
+    try:
+        return math.isfinite(x) and abs(x) <= 3.4028234663852886e38
+    except TypeError:
+        return False
 
 
 @dataclass
@@ -96,15 +106,23 @@ class MatrixSettings:
             raise UserError(f"the node group has no {self.model.ibl!r} indirect light (it "
                             "cannot integrate an HDRI); use one of: "
                             + ", ".join(BAKED_IBL_MODES))
-        vec = self.sun_to_light
-        if len(vec) != 3 or not all(math.isfinite(x) for x in vec) or \
-                math.sqrt(sum(x * x for x in vec)) < 1e-6:
+        vec = tuple(self.sun_to_light)
+        if len(vec) != 3 or not all(_finite32(x) for x in vec) or math.hypot(*vec) < 1e-6:
             raise UserError(f"sun direction {vec} is not a non-zero 3-vector")
-        for name in ("hdri_strength", "sun_strength", "hdri_rotation"):
+        for name in ("hdri_strength", "sun_strength"):
             value = getattr(self, name)
-            if not math.isfinite(value) or (name != "hdri_rotation" and value < 0):
-                raise UserError(f"{name.replace('_', ' ')} {value} out of range; use a finite "
-                                + ("number" if name == "hdri_rotation" else "value >= 0"))
+            if not (_finite32(value) and 0 <= value <= MAX_STRENGTH):
+                raise UserError(f"{name.replace('_', ' ')} {value} out of range; use 0 to "
+                                f"{MAX_STRENGTH:g}")
+        if not _finite32(self.hdri_rotation):
+            raise UserError(f"hdri rotation {self.hdri_rotation} out of range; use a finite "
+                            "number of degrees")
+        radius_px = self.radius * world_to_pixel(self, (0.0, 0.0, 0.0))[1]
+        if radius_px < MIN_SPHERE_PX:
+            need = math.ceil(MIN_SPHERE_PX * self.width / radius_px)
+            raise UserError(f"image size {self.width} is too small for a {self.rows}x{self.cols} "
+                            f"grid (spheres {radius_px:.1f} px across their radius); use "
+                            f"--size {min(need, SIZE_RANGE[1])} or a smaller grid")
         if self.metallic is not None and not 0.0 <= self.metallic <= 1.0:
             raise UserError(f"metallic {self.metallic} out of range; use 0 to 1")
         if len(self.albedo) != 3 or not all(0.0 <= a <= 1.0 for a in self.albedo):

@@ -30,14 +30,17 @@ from ..core.files import PACKAGE_ROOT
 
 # The child's program: import the package from its folder and run the command line.
 _CHILD = """
-import importlib.util, sys
+import importlib.util, signal, sys
+signal.pthread_sigmask(signal.SIG_BLOCK, {{signal.SIGINT, signal.SIGTERM}})
 spec = importlib.util.spec_from_file_location(
     "ctlab_job", {init!r}, submodule_search_locations=[{root!r}])
 pkg = importlib.util.module_from_spec(spec)
 sys.modules["ctlab_job"] = pkg
 import bpy
 getattr(bpy.utils, "expose_bundled_modules", lambda: None)()
+from ctlab_job.addon.jobs import signals
 from ctlab_job.addon.jobs.cli import main
+signals.install()
 sys.stdout.flush()
 sys.exit(main({argv!r}))
 """

@@ -18,6 +18,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -25,13 +26,54 @@ from pathlib import Path
 
 from . import pipeline
 from ..blender.renderer import ENGINES
-from ..core.errors import UserError
+from ..core.errors import Cancelled, UserError
 from ..core.model import (DIFFUSE_MODELS, G_MODELS, IBL_MODES, MATRIX_ALBEDO, UNITS, VIEWS,
                           ModelOptions)
 from ..core.settings import SHADERS, MatrixSettings
 
 EXIT_BAD_INPUT = 2
 EXIT_CANCELLED = 130
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with its errors on one line (``ctlab: error: ...``, exit status 2) instead of
+    the usage text."""
+
+    def error(self, message):
+        raise UserError(message)
+
+
+# A value that starts with "-" and is a number or a list of numbers ("-0.45,-0.55,0.7",
+# "-1e-05", "-inf"): argparse would take it for an option.
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.I)
+
+
+def join_negative_values(argv: list, value_flags) -> list:
+    """``--flag -0.5,...`` -> ``--flag=-0.5,...`` for the options that take a value."""
+    out, i = [], 0
+    while i < len(argv):
+        a = str(argv[i])
+        if a in value_flags and i + 1 < len(argv) and _NEGATIVE_VALUE.match(str(argv[i + 1])):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
+def check_path(text: str, what: str) -> Path:
+    """A path the user typed: not empty, not longer than the system allows."""
+    if not text or not text.strip():
+        raise UserError(f"empty {what}; give a folder or file name")
+    limit = os.pathconf("/", "PC_PATH_MAX") if hasattr(os, "pathconf") else 4096
+    name_limit = os.pathconf("/", "PC_NAME_MAX") if hasattr(os, "pathconf") else 255
+    if len(os.fsencode(text)) >= limit or \
+            any(len(os.fsencode(p)) > name_limit for p in Path(text).parts):
+        raise UserError(f"{what} is longer than this system allows: {text[:60]}...")
+    if "\0" in text:
+        raise UserError(f"{what} holds a NUL character: {text!r}")
+    return Path(text)
 
 
 def parse_vector(text: str, n: int, what: str) -> tuple:
@@ -197,7 +239,7 @@ def cmd_render(args) -> None:
     from ..blender.paths import resolve_hdri
     from ..core.hdri import load_hdri
     load_hdri(resolve_hdri(settings.hdri))
-    out = Path(args.out)
+    out = check_path(args.out, "--out")
     dirs = {v: out / v for v in views} if args.view == "all" else {views[0]: out}
     say(f"rendering {settings.shader} view={args.view} grid={args.grid} size={args.size} "
         f"samples={args.samples} -> {out}")
@@ -212,17 +254,21 @@ def cmd_render(args) -> None:
 
 def cmd_compare(args) -> None:
     from ..core.compare import compare
-    result = compare(Path(args.dir_a), Path(args.dir_b), Path(args.out))
+    out = check_path(args.out, "--out")
+    result = compare(check_path(args.dir_a, "first render folder"),
+                     check_path(args.dir_b, "second render folder"), out)
     o = result["overall"]
+    psnr = "identical images" if o["psnr_db"] is None else f"PSNR {o['psnr_db']:.2f} dB"
     say(f"compared {len(result['cells'])} cells: mean CIEDE2000 {o['ciede2000_mean']:.2f}, "
-        f"PSNR {o['psnr_db']:.2f} dB -> {Path(args.out) / 'metrics.json'}, diff.png")
+        f"{psnr} -> {out / 'metrics.json'}, diff.png")
 
 
 def cmd_bake(args) -> None:
     """Bake the split-sum files of an HDRI (cached by content hash), optionally copied to --out."""
-    say(f"baking {args.hdri}")
-    folder = pipeline.run_bake(Path(args.hdri), Path(args.out) if args.out else None,
-                               events(), warn)
+    hdri = check_path(args.hdri, "HDRI")
+    out = None if args.out is None else check_path(args.out, "--out")
+    say(f"baking {hdri}")
+    folder = pipeline.run_bake(hdri, out, events(), warn)
     names = ", ".join(sorted(p.name for p in folder.iterdir() if not p.name.startswith(".")))
     say(f"done: {folder}: {names}")
 
@@ -232,11 +278,12 @@ def cmd_matrix(args) -> None:
     if args.parity:
         return cmd_parity(args)
     base = settings_from(args, "osl", "full")
-    out = Path(args.out or "out/matrix")
+    out = check_path("out/matrix" if args.out is None else args.out, "--out")
     result = pipeline.run_matrix(base, args.samples, out, events(), args.verbose)
     de = {k: r["overall"]["ciede2000_mean"] for k, r in result["comparisons"].items()}
+    psnr = result["comparisons"]["compare"]["overall"]["psnr_db"]
     say(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
-        f"(PSNR {result['comparisons']['compare']['overall']['psnr_db']:.2f} dB); split-sum "
+        f"(PSNR {'-' if psnr is None else f'{psnr:.2f}'} dB); split-sum "
         f"against the reference {de['compare_split_sum']:.2f}, Unity {de['compare_unity']:.2f}; "
         f"node group against OSL {de['compare_nodes']:.3f}; open {result['report']}")
 
@@ -246,14 +293,14 @@ def cmd_parity(args) -> None:
     for --hdri."""
     base = settings_from(args, "osl", "full")
     hdris = [Path(args.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
-    out = Path(args.out or "out/parity")
+    out = check_path("out/parity" if args.out is None else args.out, "--out")
     result = pipeline.run_parity(base, hdris, args.samples, out, events(), args.verbose)
     say(f"done: parity {'holds' if result['holds'] else 'FAILS'} (every sphere's mean "
         f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="ctlab", description="Cook-Torrance Lab batch tools")
+    parser = Parser(prog="ctlab", description="Cook-Torrance Lab batch tools")
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render the sphere matrix with one shader and view")
     r.add_argument("--shader", required=True, choices=SHADERS,
@@ -277,7 +324,7 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bake", help="bake an HDRI's split-sum files (pre-filtered levels, "
                                     "irradiance, DFG tables), cached by content hash")
     b.add_argument("hdri", help="equirectangular float HDRI (.exr, .hdr)")
-    b.add_argument("--out", default="", help="also copy the files into this folder")
+    b.add_argument("--out", default=None, help="also copy the files into this folder")
     b.set_defaults(func=cmd_bake)
     m = sub.add_parser("matrix", help="the main job: Cook-Torrance vs Principled, with a report")
     m.add_argument("--out", default=None,
@@ -299,19 +346,24 @@ def fill_defaults(args, defaults: dict) -> None:
             setattr(args, key, value)
 
 
+VALUE_FLAGS = {a.flag for a in SCENE_ARGS if not a.flag_only} | {
+    "--out", "--view", "--engine", "--shader", "--parity-hdris"}
+
+
 def main(argv_=None) -> int:
     parser = build_parser()
+    argv_ = sys.argv[1:] if argv_ is None else list(argv_)
     try:
-        args = parser.parse_args(argv_)
-    except SystemExit as exc:                   # argparse already printed one line
-        return EXIT_BAD_INPUT if exc.code else 0
-    fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
-    try:
+        try:
+            args = parser.parse_args(join_negative_values(argv_, VALUE_FLAGS))
+        except SystemExit as exc:               # --help
+            return EXIT_BAD_INPUT if exc.code else 0
+        fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
         args.func(args)
     except UserError as exc:
         print(f"ctlab: error: {exc}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
-    except pipeline.Cancelled:
+    except (Cancelled, KeyboardInterrupt):
         print("ctlab: cancelled; finished outputs are kept", file=sys.stderr, flush=True)
         return EXIT_CANCELLED
     return 0

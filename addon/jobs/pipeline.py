@@ -11,7 +11,6 @@ one, and polls ``cancelled()`` between steps: when it answers True the job stops
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -22,17 +21,12 @@ from ..blender import model_node, renderer, scene_builder
 from ..blender.paths import bundled_hdri, resolve_hdri
 from ..core import energy, ibl_bake
 from ..core.compare import compare, read_image
-from ..core.files import check_writable
+from ..core.errors import Cancelled
+from ..core.files import check_writable, refuse_overwrite
 from ..core.hdri import load_hdri
 from ..core.report import write_parity_report, write_report
 from ..core.settings import MatrixSettings, with_overrides
 
-# Blender's own per-tile output goes here, never into the user's folders.
-BLENDER_LOG = Path(tempfile.gettempdir()) / f"ctlab-blender-{os.getpid()}.log"
-
-
-class Cancelled(Exception):
-    """The job was asked to stop (Events.cancelled answered True between two steps)."""
 
 
 def _nothing(*_args) -> None:
@@ -64,14 +58,16 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
     each render. Returns the last scene description. ``pixel_centres``: every view as one
     sample at each pixel centre (no anti-aliasing)."""
     events = events or Events()
+    hdri = resolve_hdri(settings.hdri)
     for out_dir in out_dirs.values():
         check_writable(out_dir)
+        refuse_overwrite([hdri], [Path(out_dir) / name for name in renderer.OUTPUT_FILES])
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     description = scene_builder.build_matrix(scene, settings, events.bake_progress)
     node = next((model_node.find(m) for m in bpy.data.materials
                  if m.get(scene_builder.TAG) and model_node.find(m)), None)
-    log = None if verbose else BLENDER_LOG
+    log = None if verbose else os.devnull      # Blender's own per-tile lines
     for i, (view, out_dir) in enumerate(out_dirs.items()):
         events.check()
         settings.model.view = view
@@ -129,6 +125,12 @@ FURNACE_RENDERS = (("furnace_cook_torrance", "cook_torrance"),
                    ("furnace_smith", "smith_ggx_correlated"))
 
 
+def _forget_report(out: Path) -> None:
+    """A job writes its report last: remove an earlier run's first, so that a job stopped
+    half-way leaves no report showing new images beside old numbers."""
+    (Path(out) / "report.html").unlink(missing_ok=True)
+
+
 def matrix_settings(base: MatrixSettings) -> dict:
     """The main job's renders: folder -> settings, all validated before anything renders."""
     settings = {}
@@ -150,6 +152,7 @@ def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | N
     load_hdri(resolve_hdri(base.hdri))
     settings = matrix_settings(base)
     check_writable(out)
+    _forget_report(out)
     steps = len(settings) + 2
     timings, scenes = {}, {}
     labels = {folder: label for folder, label, *_ in MATRIX_RENDERS}
@@ -214,6 +217,7 @@ def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
                                        principled_distribution="GGX"))
         jobs.append((Path(hdri).stem, ct, pr))
     check_writable(out)
+    _forget_report(out)
     steps, step, entries = 2 * len(jobs) + 1, 0, []
     for name, ct, pr in jobs:
         scenes = {}
@@ -246,9 +250,10 @@ def run_bake(hdri: Path, out: Path | None = None, events: Events | None = None,
     there. Returns the folder holding them."""
     events = events or Events()
     if out:
+        refuse_overwrite([hdri], [Path(out) / name for name in ibl_bake.file_names()])
         check_writable(out)
     folder = ibl_bake.bake(Path(hdri), events.bake_progress, warn)
     if out:
-        ibl_bake.export(folder, Path(out))
+        ibl_bake.export(folder, Path(out), source=hdri)
         folder = Path(out)
     return folder

@@ -1,0 +1,67 @@
+"""Ctrl-C (SIGINT) and SIGTERM cancel a job at once: one line on stderr, exit status 130,
+every finished output kept whole, no partial file, no traceback.
+
+Python runs a signal handler only in the main thread and only between its own instructions;
+a Cycles render is one long call into Blender, and Blender swallows an exception raised in
+the Python callbacks it makes (a KeyboardInterrupt, say: the render went on, and a Ctrl-C
+was noticed when it ended). So both signals are blocked in every thread (``block``, before
+Blender starts its threads) and a watcher thread waits for them. It does not unwind the main
+thread: every file the project writes is staged under a temporary name and renamed when
+whole (core.files), so the watcher removes the temporaries being written and Blender's
+session folder, prints the line and ends the process.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from ..core.files import live_temporaries
+
+SIGNALS = {signal.SIGINT, signal.SIGTERM}
+MESSAGE = "ctlab: cancelled; finished outputs are kept\n"
+_watcher = None
+
+
+def block() -> None:
+    """Block SIGINT and SIGTERM in this thread and the threads it starts from now on (call
+    it before importing bpy)."""
+    signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+
+
+def _cancel() -> None:
+    """Remove what a normal exit would have (the temporaries being written, Blender's own
+    session folder blender_XXXX in the system's temporary folder) and end the process."""
+    bpy = sys.modules.get("bpy")
+    session = Path(bpy.app.tempdir) if bpy is not None and bpy.app.tempdir else None
+    if session is not None and session.name.startswith("blender_"):
+        shutil.rmtree(session, ignore_errors=True)
+    for path in live_temporaries():
+        path = Path(path)
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                path.unlink()
+    os.write(2, MESSAGE.encode())
+    os._exit(130)
+
+
+def _watch() -> None:
+    signal.sigwait(SIGNALS)
+    _cancel()
+
+
+def install() -> None:
+    """Cancel on SIGINT and SIGTERM from now on (once per process)."""
+    global _watcher
+    if _watcher is not None:
+        return
+    block()
+    _watcher = threading.Thread(target=_watch, name="ctlab-signals", daemon=True)
+    _watcher.start()
