@@ -3,6 +3,8 @@ registration and its exact removal, new materials, the Add-menu node group, Prin
 Cook-Torrance conversion (undo, round trip), the view on all materials, light and world sync,
 every panel's draw, and the comparison job in the background (progress, cancel)."""
 
+import json
+import math
 import types
 
 import bpy
@@ -401,6 +403,17 @@ def test_render_comparison_in_the_background(addon, tmp_path):
             time.sleep(0.2)
         raise AssertionError(f"timed out: {wm.ctlab_job_message}")
 
+    # the scene a user has after Build Sphere Matrix: its default Sun has negative x and y
+    # (which the job's command line used to misread), a world with strength and rotation
+    assert bpy.ops.ctlab.build_sphere_matrix(rows=2, cols=2, resolution=32) == {'FINISHED'}
+    background, mapping = (next(n for n in bpy.context.scene.world.node_tree.nodes
+                                if n.bl_idname == kind)
+                           for kind in ("ShaderNodeBackground", "ShaderNodeMapping"))
+    background.inputs["Strength"].default_value = 1.5
+    mapping.inputs["Rotation"].default_value[2] = -0.5                # radians
+    sun = next(o for o in bpy.context.scene.objects if o.type == 'LIGHT' and o.data.type == 'SUN')
+    to_light = tuple(sun.matrix_world.to_quaternion() @ Vector((0.0, 0.0, 1.0)))
+    assert min(to_light[:2]) < 0
     out = tmp_path / "full"
     assert bpy.ops.ctlab.render_comparison(directory=str(out), **kw) == {'FINISHED'}
     with pytest.raises(RuntimeError, match="already running"):
@@ -410,6 +423,12 @@ def test_render_comparison_in_the_background(addon, tmp_path):
     assert job.state == "done", "\n".join(job.lines[-20:])
     assert wm.ctlab_job_progress == 1.0 and (out / "report.html").is_file()
     assert seen == sorted(seen) and len(set(seen)) >= 3, seen     # it moved, never backwards
+    scene = json.loads((out / "cook_torrance" / "scene.json").read_text())
+    assert scene["sun"]["to_light"] == pytest.approx(to_light, abs=1e-6)
+    assert scene["sun"]["irradiance"] == pytest.approx([sun.data.energy] * 3)
+    assert scene["hdri_strength"] == pytest.approx(1.5)
+    assert scene["hdri_rotation_deg"] == pytest.approx(math.degrees(-0.5))
+    assert scene["hdri"].endswith("forest.exr")
     assert not bpy.app.timers.is_registered(operators._job_tick) or operators._job_tick() is None
 
     out = tmp_path / "cancelled"
