@@ -89,8 +89,10 @@ def test_a_damaged_cache_entry_is_rebuilt_not_used(tmp_path, monkeypatch):
     write_float_exr(folder / ibl_bake.level_file(3), np.zeros((32, 64, 3), np.float32))  # changed
     assert cli.main(["render", "--shader", "nodes", "--view", "indirect", *SMALL, "--pixel-centres",
                      "--hdri", str(hdri), "--out", str(second)]) == 0
-    np.testing.assert_array_equal(read_image(first / "render.exr"),
-                                  read_image(second / "render.exr"))
+    # the same to float precision (a rebuilt bake's FFTs may round differently: 6e-6 seen),
+    # where a level read as damaged (zeros, or a truncated file) changes values by far more
+    np.testing.assert_allclose(read_image(second / "render.exr"),
+                               read_image(first / "render.exr"), rtol=1e-4, atol=1e-6)
 
 
 def test_a_dead_processs_staging_folder_is_removed(tmp_path, monkeypatch):

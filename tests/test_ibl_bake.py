@@ -212,3 +212,21 @@ def test_bake_repairs_nan_and_inf_texels_with_a_warning(tmp_path):
         if name.endswith(".exr"):
             assert np.isfinite(read_image(out / name)).all(), name
     assert json.loads((out / ibl_bake.INFO_FILE).read_text())["repaired_texels"] == 3
+
+
+def test_the_cache_misses_on_new_content_at_the_same_path_and_on_new_parameters(
+        tmp_path, monkeypatch):
+    """The key is the file's content and the bake's parameters, never its path: rewriting
+    the same file, or changing a level's width, bakes anew (and the new level 0 is the new
+    content), while an unchanged file and parameters find the first bake."""
+    path = tmp_path / "sky.exr"
+    write_float_exr(path, np.full((32, 64, 3), 0.25, np.float32))
+    first = ibl_bake.bake(path)
+    assert ibl_bake.bake(path) == first
+    write_float_exr(path, np.full((32, 64, 3), 0.75, np.float32))
+    second = ibl_bake.bake(path)
+    assert second != first
+    np.testing.assert_allclose(read_image(second / ibl_bake.level_file(0)), 0.75)
+    monkeypatch.setattr(ibl_bake, "LEVEL_WIDTHS", (0, 256, 256, 128, 64, 64, 64))
+    third = ibl_bake.bake(path)
+    assert third not in (first, second)

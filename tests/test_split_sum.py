@@ -110,3 +110,19 @@ def test_split_sum_equals_the_reference_on_mirrors_within_noise(tmp_path):
         assert de("split1") < 1.5 * de("ref2") + 0.2, (cell["col"], de("split1"), de("ref2"))
         checked += 1
     assert checked == 3
+
+
+def test_the_world_strength_scales_every_indirect_mode_exactly(tmp_path):
+    """HDRI Strength multiplies the world's radiance: at pixel centres, with the same seed, the
+    split-sum, Unity's mode and the reference integration scale by 2.5 to float precision
+    (a strength applied twice, or not at all, to any lookup fails)."""
+    kw = dict(view="indirect", grid=(2, 2), size=48, samples=1, pixel_centres=True,
+              sun_strength=0.0)
+    for ibl in ("split_sum", "unity", "reference"):
+        one, scene = render(tmp_path / f"{ibl}-1", ibl=ibl, hdri_strength=1.0, **kw)
+        more, _ = render(tmp_path / f"{ibl}-2.5", ibl=ibl, hdri_strength=2.5, **kw)
+        m = np.zeros(one.shape[:2], dtype=bool)
+        for cell in scene["cells"]:
+            m |= sphere_pixels(scene, cell)
+        np.testing.assert_allclose(more[m], 2.5 * one[m], rtol=2e-6, atol=1e-7, err_msg=ibl)
+        assert one[m].mean() > 0.05

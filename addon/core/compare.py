@@ -80,6 +80,9 @@ def srgb_to_lab(c: np.ndarray) -> np.ndarray:
                      200 * (f[..., 1] - f[..., 2])], axis=-1)
 
 
+HUE_EPS = 1e-9       # degrees: hue differences this close to 180 count as 180
+
+
 def ciede2000(lab1: np.ndarray, lab2: np.ndarray) -> np.ndarray:
     """CIEDE2000 colour difference (kL = kC = kH = 1), Sharma et al. 2005, eqs. 1-22."""
     L1, a1, b1 = np.moveaxis(np.asarray(lab1, dtype=np.float64), -1, 0)
@@ -93,15 +96,18 @@ def ciede2000(lab1: np.ndarray, lab2: np.ndarray) -> np.ndarray:
     h2p = np.degrees(np.arctan2(b2, a2p)) % 360
     dLp = L2 - L1
     dCp = C2p - C1p
+    # Hues exactly opposite (|h1' - h2'| = 180 in exact arithmetic: Sharma's pair 14) sit on a
+    # discontinuity of the mean hue; round-off must not pick the other side (numpy 1.26's
+    # degrees/arctan2 put it at 180 + 3e-14 and gave 4.7461 for the published 4.8045).
     dhp = h2p - h1p
-    dhp = np.where(dhp > 180, dhp - 360, np.where(dhp < -180, dhp + 360, dhp))
+    beyond = np.abs(dhp) > 180 + HUE_EPS
+    dhp = np.where(beyond, dhp - 360 * np.sign(dhp), dhp)
     dhp = np.where(C1p * C2p == 0, 0.0, dhp)
     dHp = 2 * np.sqrt(C1p * C2p) * np.sin(np.radians(dhp) / 2)
     Lbp = (L1 + L2) / 2
     Cbp = (C1p + C2p) / 2
     hsum = h1p + h2p
-    hbp = np.where(np.abs(h1p - h2p) > 180,
-                   np.where(hsum < 360, (hsum + 360) / 2, (hsum - 360) / 2), hsum / 2)
+    hbp = np.where(beyond, np.where(hsum < 360, (hsum + 360) / 2, (hsum - 360) / 2), hsum / 2)
     hbp = np.where(C1p * C2p == 0, hsum, hbp)
     T = (1 - 0.17 * np.cos(np.radians(hbp - 30)) + 0.24 * np.cos(np.radians(2 * hbp))
          + 0.32 * np.cos(np.radians(3 * hbp + 6)) - 0.20 * np.cos(np.radians(4 * hbp - 63)))
