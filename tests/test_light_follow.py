@@ -93,4 +93,6 @@ def test_sun_and_hdri_rotation_change_cook_torrance_like_principled(tmp_path):
     assert np.abs(p).mean() > 0.2 * _sphere(before, "principled").mean()   # a real change
     corr = np.corrcoef(p, c)[0, 1]
     ratio = np.abs(c).mean() / np.abs(p).mean()
-    assert corr > 0.9 and 0.75 < ratio < 1.33, (corr, ratio)
+    # measured 0.984 and 0.970 on 4.5 and 5.2 (Principled's 64-sample noise is the residue);
+    # with the world's rotation not followed (its driver removed) 0.53 and 0.61
+    assert corr > 0.97 and 0.94 < ratio < 1.06, (corr, ratio)

@@ -74,3 +74,29 @@ def test_view_matches_independent_formulas(rendered, view):
     bad = np.abs(got - want) > tol
     assert not bad.any(), (f"{view}: {int(bad.sum())} of {bad.size} values differ; worst "
                            f"got {got[bad][:3]} want {want[bad][:3]}")
+
+
+def test_the_matrix_layout_and_the_normal_view_in_the_image(tmp_path):
+    """Read from the pixels, not from scene.json alone: each sphere's normal view is the unit
+    sphere seen by the camera (x to the image's right, z up, -y toward the camera) around the
+    centre scene.json gives; spec_color rises with the column (metallic 0 -> 1) and the peak
+    of D falls with the row (smoothness 1 -> 0), as docs/model.md lays the matrix out."""
+    img, scene = render(tmp_path, view=("normal", "spec_color", "D"), grid=(3, 3), size=96,
+                        albedo=(0.9, 0.9, 0.9))
+    ys, xs = np.mgrid[0:96, 0:96] + 0.5
+    for cell in scene["cells"]:
+        m = sphere_pixels(scene, cell, margin_px=1.5)
+        (cx, cy), r = cell["center_px"], cell["radius_px"]
+        dx, dz = (xs[m] - cx) / r, -(ys[m] - cy) / r
+        want = np.stack([dx, -np.sqrt(np.clip(1 - dx ** 2 - dz ** 2, 0, 1)), dz], axis=1)
+        np.testing.assert_allclose(img["normal"][m], want, atol=0.03,
+                                   err_msg=f"{cell['row']},{cell['col']}")
+    def cell_value(view, row, col, stat):
+        c = next(c for c in scene["cells"] if c["row"] == row and c["col"] == col)
+        return stat(img[view][sphere_pixels(scene, c)][:, 0])
+    for row in range(3):
+        spec = [cell_value("spec_color", row, col, np.mean) for col in range(3)]
+        assert spec[0] < spec[1] < spec[2], spec                   # metallic rises to the right
+    for col in range(3):
+        peak = [cell_value("D", row, col, np.max) for row in range(3)]
+        assert peak[0] > peak[1] > peak[2], peak                    # smoothness falls downward

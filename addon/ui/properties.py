@@ -68,9 +68,8 @@ def _sun_poll(self, obj):
 
 def _sun_changed(scene, context):
     from ..blender import light_sync
-    for mat, _ in model_node.model_materials():
-        if not mat.get("ctlab_matrix"):
-            light_sync.sync_material(mat, scene, environment=False)
+    for mat, _ in light_sync.user_materials():
+        light_sync.sync_material(mat, scene, environment=False)
 
 
 def register() -> None:
