@@ -230,3 +230,45 @@ def test_the_cache_misses_on_new_content_at_the_same_path_and_on_new_parameters(
     monkeypatch.setattr(ibl_bake, "LEVEL_WIDTHS", (0, 256, 256, 128, 64, 64, 64))
     third = ibl_bake.bake(path)
     assert third not in (first, second)
+
+
+@pytest.mark.parametrize("width", [1024, 1000])
+def test_every_level_of_a_real_size_source_against_a_direct_convolution(tmp_path, width):
+    """A 1024 x 512 source (whole texel blocks when downsampled) and a 1000 x 500 one (which
+    the bake resamples by area): at 40 texel centres of every level k = 1 .. 6, the level is the
+    normalised convolution of the source's own texels with D(h) max(r.l, 0) at alpha = (k/6)^2,
+    summed directly over all source texels here. The bake convolves the downsampled source
+    exactly; what remains is the downsampling: measured at most 0.07% at the median and 0.73% at
+    worst (level 1, beside the patch), against bounds of 0.2% and 1.5%."""
+    h = width // 2
+    rng = np.random.default_rng(width)
+    yy, xx = np.mgrid[0:h, 0:width]
+    src = (0.5 + 0.3 * np.sin(xx / width * 6 * np.pi)[..., None] * np.cos(yy / h * 3 * np.pi)[..., None]
+           + 0.05 * rng.random((h, width, 3))).astype(np.float32)
+    src[h // 4:h // 4 + 12, width // 3:width // 3 + 20] = 25.0           # a bright patch
+    path = tmp_path / f"sky{width}.exr"
+    write_float_exr(path, src)
+    folder = ibl_bake.bake(path)
+    elev = np.pi / 2 - (np.arange(h) + 0.5) * np.pi / h
+    phi = (0.5 - (np.arange(width) + 0.5) / width) * 2 * np.pi
+    E, P = np.meshgrid(elev, phi, indexing="ij")
+    d = np.stack([np.cos(E) * np.cos(P), np.cos(E) * np.sin(P), np.sin(E)], -1).reshape(-1, 3)
+    edges = np.pi / 2 - np.arange(h + 1) * np.pi / h
+    dw = np.repeat((2 * np.pi / width) * (np.sin(edges[:-1]) - np.sin(edges[1:])), width)
+    L = src.reshape(-1, 3).astype(np.float64)
+    for k in range(1, ibl_bake.LEVEL_COUNT):
+        level = read_image(folder / ibl_bake.level_file(k))
+        lh, lw = level.shape[:2]
+        rows, cols = rng.integers(0, lh, 40), rng.integers(0, lw, 40)
+        # half the points on the patch's neighbourhood, where the lobe's shape matters most
+        rows[:20] = rng.integers(int(lh * 0.2), int(lh * 0.32), 20)
+        cols[:20] = rng.integers(int(lw * 0.3), int(lw * 0.38), 20)
+        e = np.pi / 2 - (rows + 0.5) * np.pi / lh
+        ph = (0.5 - (cols + 0.5) / lw) * 2 * np.pi
+        r = np.stack([np.cos(e) * np.cos(ph), np.cos(e) * np.sin(ph), np.sin(e)], -1)
+        a2 = max((k / 6) ** 2, 0.002) ** 2
+        mu = r @ d.T
+        kern = a2 / (np.pi * ((1 + mu) / 2 * (a2 - 1) + 1) ** 2) * np.maximum(mu, 0) * dw
+        want = (kern @ L) / kern.sum(axis=1, keepdims=True)
+        rel = np.abs(level[rows, cols] - want) / want
+        assert np.median(rel) < 0.002 and rel.max() < 0.015, (width, k, np.median(rel), rel.max())
