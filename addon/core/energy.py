@@ -66,10 +66,10 @@ def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list
 _COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d")
 
 
-def svg_plot(curves_by_g: dict, width: int = 560, height: int = 320) -> str:
+def svg_plot(curves_by_g: dict, width: int = 620, height: int = 320) -> str:
     """Directional albedo against the view angle: one colour per smoothness, solid for the
     first G model, dashed for the second. A standalone <svg>."""
-    left, right, top, bottom = 48, 150, 12, 36
+    left, right, top, bottom = 48, 210, 12, 36      # the legend (G names) on the right
     pw, ph = width - left - right, height - top - bottom
     y_max = 1.1
 
