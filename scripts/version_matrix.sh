@@ -25,7 +25,7 @@ for s in "${series[@]}"; do
       (CTLAB_BLENDER=$s source "$ROOT/scripts/bootstrap.sh") >&2 ||
         { echo "| $s | — | install failed |" > "$LOG/$s.row"; continue; } ;;
     5.0|5.1)
-      if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import bpy" 2>/dev/null; then
+      if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import bpy, hypothesis" 2>/dev/null; then
         pyver="$(source "$ROOT/scripts/bootstrap.sh" --functions-only; ctlab_python_version "$s")"
         python="$(source "$ROOT/scripts/bootstrap.sh" --functions-only; ctlab_find_python "$pyver")" ||
           { echo "| $s | — | Python $pyver not found |" > "$LOG/$s.row"; continue; }
@@ -33,7 +33,8 @@ for s in "${series[@]}"; do
         echo "version_matrix: installing bpy $s.* into $venv ($python)" >&2
         rm -rf "$venv"
         "$python" -m venv "$venv" && "$venv/bin/python" -m pip install --quiet \
-          --disable-pip-version-check "bpy==$s.*" "$numpy" pytest >&2 ||
+          --disable-pip-version-check "bpy==$s.*" "$numpy" \
+          $(grep -E '^(pytest|hypothesis)==' "$ROOT/scripts/requirements-5.2.txt") >&2 ||
           { echo "| $s | — | install failed |" > "$LOG/$s.row"; continue; }
       fi ;;
     *) echo "version_matrix: error: unknown series $s; use 4.5 5.0 5.1 5.2" >&2; exit 2 ;;
