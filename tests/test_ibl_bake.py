@@ -272,3 +272,25 @@ def test_every_level_of_a_real_size_source_against_a_direct_convolution(tmp_path
         want = (kern @ L) / kern.sum(axis=1, keepdims=True)
         rel = np.abs(level[rows, cols] - want) / want
         assert np.median(rel) < 0.002 and rel.max() < 0.015, (width, k, np.median(rel), rel.max())
+
+
+def test_the_shipped_dfg_tables_are_what_integrating_them_gives(tmp_path, monkeypatch):
+    """The extension ships the DFG tables (addon/data, scripts/build_tables.py) so that a first
+    bake need not integrate them; they must equal a fresh integration with today's model and
+    parameters (run the script after changing either), and a bake in an empty cache must use
+    them without integrating."""
+    for g in ("cook_torrance", "smith_ggx_correlated"):
+        shipped = ibl_bake.shipped_dfg(g)
+        assert shipped is not None, "addon/data lacks a table for today's parameters"
+        np.testing.assert_allclose(shipped, ibl_bake.dfg_table(g), rtol=1e-6, atol=1e-7,
+                                   err_msg=g)
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "empty-cache"))
+
+    def no_integration(*args, **kw):
+        raise AssertionError("the bake integrated a table it ships")
+    monkeypatch.setattr(ibl_bake, "dfg_table", no_integration)
+    path = tmp_path / "sky.exr"
+    write_float_exr(path, np.ones((32, 64, 3), np.float32))
+    folder = ibl_bake.bake(path)
+    np.testing.assert_allclose(read_image(folder / ibl_bake.dfg_file("cook_torrance")),
+                               ibl_bake.shipped_dfg("cook_torrance"), rtol=1e-7)

@@ -20,6 +20,7 @@ from .errors import UserError
 PACKAGE_ROOT = Path(__file__).resolve().parents[2]      # the extension / repository root
 OSL_DIR = PACKAGE_ROOT / "osl"
 NODE_GROUPS_DIR = PACKAGE_ROOT / "node_groups"
+DATA_DIR = PACKAGE_ROOT / "addon" / "data"               # tables shipped with the extension
 
 # The temporaries being written now, which an exit that cannot unwind (a signal during a
 # render, jobs/signals.py) removes; and their names: .NAME.<pid>-<random>.partial[.EXT]

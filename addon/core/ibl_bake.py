@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from . import cache
-from .files import check_writable, copy_file, refuse_overwrite, write_json
+from .files import DATA_DIR, check_writable, copy_file, refuse_overwrite, write_json
 from .hdri import file_hash, load_hdri, write_float_exr
 from .model import G_MODELS, MIN_ALPHA
 
@@ -247,13 +247,39 @@ def _params_key() -> str:
     return hashlib.sha256(sig.encode()).hexdigest()[:8]
 
 
+# The DFG tables depend on the model alone, so the extension ships them (addon/data/, written
+# by scripts/build_tables.py; tests/test_ibl_bake.py checks that integrating them again gives
+# the same values): a first bake reads them instead of integrating for seconds.
+
+def table_signature() -> dict:
+    """What the DFG tables depend on: a shipped table is used only when this matches."""
+    return {"version": VERSION, "size": DFG_SIZE, "min_ndotv": DFG_MIN_NDOTV,
+            "samples": {g: list(s) for g, s in DFG_SAMPLES.items()}}
+
+
+def shipped_dfg(g_model: str) -> np.ndarray | None:
+    """The shipped DFG table of one G option, or None when absent or made for other
+    parameters."""
+    try:
+        meta = json.loads((DATA_DIR / "dfg.json").read_text())
+        table = np.load(DATA_DIR / f"dfg_{g_model}.npy")
+    except (OSError, ValueError):
+        return None
+    if meta != table_signature() or table.shape != (DFG_SIZE, DFG_SIZE, 3):
+        return None
+    return table.astype(np.float32)
+
+
 def dfg_path(g_model: str) -> Path:
-    """The DFG table of one G option (independent of the HDRI), built once per cache."""
+    """The DFG table of one G option (independent of the HDRI) in the cache: the shipped one,
+    or integrated once per cache when none matches."""
     size, samples = DFG_SIZE, DFG_SAMPLES[g_model]
     key = f"dfg-v{VERSION}-{g_model}-{size}-{samples[0]}x{samples[1]}"
-    folder = cache.cached(key, lambda stage: write_float_exr(stage / "dfg.exr",
-                                                              dfg_table(g_model)))
-    return folder / "dfg.exr"
+
+    def fill(stage):
+        table = shipped_dfg(g_model)
+        write_float_exr(stage / "dfg.exr", dfg_table(g_model) if table is None else table)
+    return cache.cached(key, fill) / "dfg.exr"
 
 
 def _report(progress, fraction, message):

@@ -1,0 +1,36 @@
+"""Write the DFG tables the extension ships (addon/data/dfg_<G>.npy and dfg.json, its
+parameters): the split-sum's scale and bias of specColor and the Disney factor, integrated for
+this model's D and each G (addon/core/ibl_bake.py, dfg_table). Run it after changing the model
+or the tables' parameters; tests/test_ibl_bake.py fails until it is run.
+
+    .venv-bpy<series>/bin/python scripts/build_tables.py
+"""
+
+import io
+import json
+import os
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+import numpy as np  # noqa: E402
+
+from addon.core import ibl_bake  # noqa: E402
+from addon.core.files import DATA_DIR, atomic_path, write_text  # noqa: E402
+from addon.core.model import G_MODELS  # noqa: E402
+
+
+def main() -> None:
+    DATA_DIR.mkdir(parents=True, exist_ok=True)
+    for g in G_MODELS:
+        buf = io.BytesIO()
+        np.save(buf, ibl_bake.dfg_table(g))
+        with atomic_path(DATA_DIR / f"dfg_{g}.npy") as tmp:
+            tmp.write_bytes(buf.getvalue())
+        print(f"wrote {DATA_DIR / f'dfg_{g}.npy'}")
+    write_text(DATA_DIR / "dfg.json", json.dumps(ibl_bake.table_signature(), indent=2))
+
+
+if __name__ == "__main__":
+    main()
