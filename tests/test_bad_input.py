@@ -71,7 +71,7 @@ CLI_CASES = {
                           "is an input of this job"),
     # compare: both folders checked whole before anything is written
     "compare-truncated": (["compare", "@RENDER:truncated", "@RENDER:good"],
-                          "cannot read image"),
+                          "image unreadable"),
     "compare-bad-json": (["compare", "@RENDER:good", "@RENDER:badjson"], "is not valid JSON"),
     "compare-bad-scene": (["compare", "@RENDER:schema", "@RENDER:good"],
                           "is not a render's description: 'width' is not a positive"),

@@ -19,32 +19,15 @@ import numpy as np
 
 from .errors import UserError
 from .files import atomic_path, check_writable, finite_json, refuse_overwrite, write_json
-from .hdri import oiio
+from .hdri import oiio, read_pixels
 from .model import REC709_LUMINANCE
 
 CELL_FRACTION = 0.95
 
 
 def read_image(path: Path) -> np.ndarray:
-    """An image as float32 (h, w, 3) through OpenImageIO, read whole: a truncated or corrupt
-    file is a UserError, not zeros."""
-    OIIO = oiio()
-    inp = OIIO.ImageInput.open(str(path))
-    if inp is None:
-        raise UserError(f"cannot read image {path}: {OIIO.geterror().strip() or 'unknown format'}")
-    try:
-        spec = inp.spec()
-        pixels = inp.read_image(0, 0, 0, 3, OIIO.FLOAT) if spec.nchannels >= 3 else None
-        failed = inp.has_error
-        detail = inp.geterror().strip() if failed else ""
-    finally:
-        inp.close()
-    if spec.nchannels < 3:
-        raise UserError(f"cannot read image {path}: {spec.nchannels} channel(s), not RGB")
-    if pixels is None or failed:
-        raise UserError(f"cannot read image {path}: the pixel data is corrupt or truncated"
-                        + (f" ({detail})" if detail else ""))
-    return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
+    """An image as float32 (h, w, 3), read whole (hdri.read_pixels)."""
+    return read_pixels(path, "image")
 
 
 def write_png(path: Path, rgb01: np.ndarray) -> None:

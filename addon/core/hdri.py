@@ -50,32 +50,49 @@ def read_hdri(path, repair: bool = False):
     return pixels, count
 
 
-@functools.lru_cache(maxsize=2)
-def _decode(path: str, size: int, mtime_ns: int):
-    """The pixels with NaN/Inf texels set to 0, and how many there were."""
+def read_pixels(path, what: str = "image", check=None) -> np.ndarray:
+    """An image file's first three channels as float32 (height, width, 3), read whole: an
+    unreadable, truncated or corrupt file is a UserError naming it as ``what``, never zeros.
+    ``check(spec, OIIO)`` may refuse the file from its header before the pixels are read."""
     path = Path(path)
     OIIO = oiio()
     inp = OIIO.ImageInput.open(str(path))
     if inp is None:
-        raise UserError(f"HDRI unreadable: {path} ({OIIO.geterror().strip() or 'unknown format'})")
+        raise UserError(f"{what} unreadable: {path} "
+                        f"({OIIO.geterror().strip() or 'unknown format'})")
     try:
         spec = inp.spec()
-        if spec.format.basetype not in (OIIO.FLOAT, OIIO.HALF, OIIO.DOUBLE):
-            raise UserError(f"HDRI is not floating point: {path} has {spec.format} pixels; "
-                            "use a scene-linear float image (.exr or .hdr)")
+        if check is not None:
+            check(spec, OIIO)
         if spec.nchannels < 3:
-            raise UserError(f"HDRI has {spec.nchannels} channel(s): {path}; an RGB image is needed")
-        if spec.width != 2 * spec.height:
-            raise UserError(f"HDRI is {spec.width}x{spec.height}, not 2:1 equirectangular: {path}")
+            raise UserError(f"{what} has {spec.nchannels} channel(s): {path}; an RGB image is "
+                            "needed")
         pixels = inp.read_image(0, 0, 0, 3, OIIO.FLOAT)
         failed = inp.has_error
         detail = inp.geterror().strip() if failed else ""
     finally:
         inp.close()
     if pixels is None or failed:
-        raise UserError(f"HDRI unreadable: {path} (the pixel data is corrupt or truncated"
+        raise UserError(f"{what} unreadable: {path} (the pixel data is corrupt or truncated"
                         + (f": {detail}" if detail else "") + ")")
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
+    return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
+
+
+def _equirectangular_float(path):
+    def check(spec, OIIO):
+        if spec.format.basetype not in (OIIO.FLOAT, OIIO.HALF, OIIO.DOUBLE):
+            raise UserError(f"HDRI is not floating point: {path} has {spec.format} pixels; "
+                            "use a scene-linear float image (.exr or .hdr)")
+        if spec.nchannels >= 3 and spec.width != 2 * spec.height:
+            raise UserError(f"HDRI is {spec.width}x{spec.height}, not 2:1 equirectangular: "
+                            f"{path}")
+    return check
+
+
+@functools.lru_cache(maxsize=2)
+def _decode(path: str, size: int, mtime_ns: int):
+    """The pixels with NaN/Inf texels set to 0, and how many there were."""
+    pixels = read_pixels(path, "HDRI", _equirectangular_float(path))
     bad = ~np.isfinite(pixels)
     count = int(bad.any(axis=2).sum())
     if count:

@@ -25,6 +25,7 @@ from ..core.errors import Cancelled
 from ..core.files import check_writable, refuse_overwrite
 from ..core.hdri import load_hdri
 from ..core.report import write_parity_report, write_report
+from ..core.model import ModelOptions
 from ..core.settings import MatrixSettings, with_overrides
 
 
@@ -60,22 +61,22 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
     events = events or Events()
     hdri = resolve_hdri(settings.hdri)
     for out_dir in out_dirs.values():
-        check_writable(out_dir)
         refuse_overwrite([hdri], [Path(out_dir) / name for name in renderer.OUTPUT_FILES])
+        check_writable(out_dir)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     description = scene_builder.build_matrix(scene, settings, events.bake_progress)
-    node = next((model_node.find(m) for m in bpy.data.materials
-                 if m.get(scene_builder.TAG) and model_node.find(m)), None)
+    node = next(filter(None, (model_node.find(m) for m in bpy.data.materials
+                              if m.get(scene_builder.TAG))), None)
     log = None if verbose else os.devnull      # Blender's own per-tile lines
     for i, (view, out_dir) in enumerate(out_dirs.items()):
         events.check()
-        settings.model.view = view
-        description["model"] = settings.model.as_dict()
+        model = ModelOptions(**dict(vars(settings.model), view=view))
+        description["model"] = model.as_dict()
         if node is not None:
-            model_node.set_options(node, settings.model)
-        renderer.configure(scene, settings.shader, view, samples, settings.model.seed,
-                           pixel_centres, engine)
+            model_node.set_options(node, model)
+        renderer.configure(scene, settings.shader, view, samples, model.seed, pixel_centres,
+                           engine)
         description = renderer.render(scene, out_dir, description, log)
         if on_view:
             on_view(i, view, description)
