@@ -116,8 +116,10 @@ def test_the_world_strength_scales_every_indirect_mode_exactly(tmp_path):
     """HDRI Strength multiplies the world's radiance: at pixel centres, with the same seed, the
     split-sum, Unity's mode and the reference integration scale by 2.5 to float precision
     (measured within 2.3e-4 relative: bpy 4.5's OpenImageIO filtering and the reference's
-    sums round the scaled and the unscaled renders differently at a few pixels); a strength
-    applied twice, or not at all, to any lookup is off by 150% or 60%."""
+    sums round the scaled and the unscaled renders differently at a few pixels). On 5.2 a
+    pixel-centre render is not quite repeatable: the same render twice differs at one or two
+    pixels in 3072 by up to 0.3% (seen in every mode, one run in two), so those are allowed
+    within 1%. A strength applied twice, or not at all, to any lookup is off by 150% or 60%."""
     kw = dict(view="indirect", grid=(2, 2), size=48, samples=1, pixel_centres=True,
               sun_strength=0.0)
     for ibl in ("split_sum", "unity", "reference"):
@@ -126,5 +128,7 @@ def test_the_world_strength_scales_every_indirect_mode_exactly(tmp_path):
         m = np.zeros(one.shape[:2], dtype=bool)
         for cell in scene["cells"]:
             m |= sphere_pixels(scene, cell)
-        np.testing.assert_allclose(more[m], 2.5 * one[m], rtol=1e-3, atol=1e-7, err_msg=ibl)
+        np.testing.assert_allclose(more[m], 2.5 * one[m], rtol=1e-2, atol=1e-7, err_msg=ibl)
+        off = np.abs(more[m] - 2.5 * one[m]) > 1e-3 * np.abs(2.5 * one[m]) + 1e-7
+        assert off.mean() < 2e-3, (ibl, int(off.sum()))
         assert one[m].mean() > 0.05
