@@ -96,12 +96,25 @@ class _Builder:
         for frame, spec in data["frames"].items():
             for name, text in spec["nodes"].items():
                 self.exprs[name] = (frame, parse(text))
-        self.built = {}                     # node name -> output socket
+        self.built = {}                     # (node name, mode or None) -> output socket
         self.frames = {}
         self.current_frame = None
         self.group_in = self.nodes.new("NodeGroupInput")
         self.geometry = None
         self.columns = {}
+        self.horizontal = {}                # direction socket -> (|d.z|, hypot(d.x, d.y))
+        # "colour": every term as a colour (the Value output); "emission": the pre-filtered
+        # radiance left out, for build_group to add as closures (the Emission output)
+        self.mode = "colour"
+        self.prefiltered_args = None
+
+    def uses_prefiltered(self, tree) -> bool:
+        """Whether an expression depends on the pre-filtered levels (``prefiltered``)."""
+        if tree[0] == "call":
+            return tree[1] == "prefiltered" or any(self.uses_prefiltered(a) for a in tree[2])
+        if tree[0] == "ref" and tree[1] in self.exprs:
+            return self.uses_prefiltered(self.exprs[tree[1]][1])
+        return False
 
     def frame(self, key):
         if key not in self.frames:
@@ -142,17 +155,18 @@ class _Builder:
                 self.geometry = self.nodes.new("ShaderNodeNewGeometry")
                 self.geometry.location = (-400, 0)
             return self.geometry.outputs[name[4:]]
-        if name in self.built:
-            return self.built[name]
         if name not in self.exprs:
             raise UserError(f"node description: unknown name {name!r}")
         frame, tree = self.exprs[name]
+        key = (name, self.mode if self.uses_prefiltered(tree) else None)
+        if key in self.built:
+            return self.built[key]
         saved, self.current_frame = self.current_frame, frame
         sock = self.value(tree)
         self.current_frame = saved
         if isinstance(sock, bpy.types.NodeSocket):
             sock.node.label = name
-        self.built[name] = sock
+        self.built[key] = sock
         return sock
 
     def value(self, tree):
@@ -208,77 +222,78 @@ class _Builder:
             self.link(args[1], node.inputs["Angle"])
             return node.outputs[0]
         if op == "env":
-            # Blender's equirectangular mapping (the Environment Texture's, image rows bottom-up):
-            # s = 0.5 - atan2(d.y, d.x) / 2pi,  t = 0.5 + atan2(d.z, hypot(d.x, d.y)) / pi
-            d = args[1]
-            dx, dy, dz = (self.call(c, [d]) for c in ("x", "y", "z"))
-            s = self.call("math.SUBTRACT", [0.5, self.call("math.DIVIDE", [
-                self.call("math.ARCTAN2", [dy, dx]), 6.283185307179586])])
-            hyp = self.call("math.SQRT", [self.call("math.ADD", [
-                self.call("math.MULTIPLY", [dx, dx]), self.call("math.MULTIPLY", [dy, dy])])])
-            t = self.call("math.ADD", [0.5, self.call("math.DIVIDE", [
-                self.call("math.ARCTAN2", [dz, hyp]), 3.141592653589793])])
-            return self.bilinear(args[0], s, t, wrap_s=True)
+            return self.environment(args[0], args[1])
         if op == "table":
-            return self.bilinear(args[0], args[1], args[2], wrap_s=False)
-        if op == "levels":
-            x, direction = args
+            return self.table(args[0], args[1], args[2])
+        if op == "prefiltered":
+            x, direction, factor = args
+            if self.mode == "emission":
+                # left out of the colour: build_group adds it as a mix of closures
+                self.prefiltered_args = (x, direction, factor)
+                return 0.0
             total = None
             for k in range(LEVEL_COUNT):
                 # hat weight max(0, 1 - |x - k|): the two neighbouring levels, blended linearly
                 w = self.call("math.MAXIMUM", [self.call("math.SUBTRACT", [
                     1.0, self.call("math.ABSOLUTE", [self.call("math.SUBTRACT", [x, float(k)])])]),
                     0.0])
-                term = self.call("vec.SCALE", [self.call("env", [f"specular_{k}", direction]), w])
+                term = self.call("vec.SCALE", [self.environment(f"specular_{k}", direction), w])
                 total = term if total is None else self.call("vec.ADD", [total, term])
-            return total
+            return self.call("vec.MULTIPLY", [total, factor])
         raise UserError(f"node description: unknown operation {op!r}")
 
-    def bilinear(self, key, s, t, wrap_s):
-        """Bilinear interpolation of a baked image at (s, t) from four nearest-texel lookups at
-        texel centres, as OIIO's "linear" texture() in the OSL shader: s periodic (or clamped),
-        t clamped. Written out because EEVEE's linear sampling uses mip-maps chosen by screen
-        derivatives, which blur the tables and levels; nearest lookups have none."""
-        size = []
-        for dim in ("width", "height"):
-            value = self.new("ShaderNodeValue")
-            value.label = f"{key} {dim}"
-            value[BAKE_FILE] = key
-            value[BAKE_DIM] = dim
-            value.outputs[0].default_value = 1.0
-            size.append(value.outputs[0])
-        W, H = size
-        x = self.call("math.SUBTRACT", [self.call("math.MULTIPLY", [s, W]), 0.5])
-        y = self.call("math.SUBTRACT", [self.call("math.MULTIPLY", [t, H]), 0.5])
-        i0 = self.call("math.FLOOR", [x])
-        j0 = self.call("math.FLOOR", [y])
-        fx = self.call("math.SUBTRACT", [x, i0])
-        fy = self.call("math.SUBTRACT", [y, j0])
-        half_h = self.call("math.DIVIDE", [0.5, H])
+    def dimension(self, key, dim):
+        """A Value node that set_bake sets to a baked file's width or height."""
+        value = self.new("ShaderNodeValue")
+        value.label = f"{key} {dim}"
+        value[BAKE_FILE] = key
+        value[BAKE_DIM] = dim
+        value.outputs[0].default_value = 1.0
+        return value.outputs[0]
 
-        def centre_u(i):
-            return self.call("math.DIVIDE", [self.call("math.ADD", [i, 0.5]), W])
+    def environment(self, key, d):
+        """A baked lat-long file toward d: an Environment Texture node, Linear (bilinear at
+        texel centres, no mip-maps in Cycles or EEVEE; Blender's equirectangular mapping, s
+        periodic). The model clamps t to the centres of the first and last rows; Cycles
+        wraps it, so d's elevation is limited here to half a row from each pole,
+        pi/2 - pi/(2H): the horizontal part is scaled by k = max(1, |d.z| tan(pi/(2H)) / h)."""
+        if d not in self.horizontal:
+            dx, dy, dz = (self.call(c, [d]) for c in ("x", "y", "z"))
+            h = self.call("math.SQRT", [self.call("math.ADD", [
+                self.call("math.MULTIPLY", [dx, dx]), self.call("math.MULTIPLY", [dy, dy])])])
+            self.horizontal[d] = (self.call("math.ABSOLUTE", [dz]),
+                                  self.call("math.MAXIMUM", [h, 1e-20]))
+        abs_z, h = self.horizontal[d]
+        tan_half_row = self.call("math.TANGENT", [
+            self.call("math.DIVIDE", [1.5707963267948966, self.dimension(key, "height")])])
+        k = self.call("math.MAXIMUM", [1.0, self.call("math.DIVIDE", [
+            self.call("math.MULTIPLY", [abs_z, tan_half_row]), h])])
+        return self.lookup(key, self.call("vec.MULTIPLY", [d, self.call("vec3", [k, k, 1.0])]))
 
-        def centre_v(j):
-            v = self.call("math.DIVIDE", [self.call("math.ADD", [j, 0.5]), H])
-            return self.call("math.MINIMUM", [self.call("math.MAXIMUM", [v, half_h]),
-                                              self.call("math.SUBTRACT", [1.0, half_h])])
-        us = (centre_u(i0), centre_u(self.call("math.ADD", [i0, 1.0])))
-        vs = (centre_v(j0), centre_v(self.call("math.ADD", [j0, 1.0])))
-        wx = (self.call("math.SUBTRACT", [1.0, fx]), fx)
-        wy = (self.call("math.SUBTRACT", [1.0, fy]), fy)
-        total = None
-        for a in range(2):
-            for b in range(2):
-                node = self.new("ShaderNodeTexImage", interpolation='Closest',
-                                extension='REPEAT' if wrap_s else 'EXTEND')
-                node.label = key
-                node[BAKE_FILE] = key
-                self.link(self.call("vec3", [us[a], vs[b], 0.0]), node.inputs["Vector"])
-                term = self.call("vec.SCALE", [node.outputs["Color"],
-                                               self.call("math.MULTIPLY", [wx[a], wy[b]])])
-                total = term if total is None else self.call("vec.ADD", [total, term])
-        return total
+    def lookup(self, key, d):
+        node = self.new("ShaderNodeTexEnvironment", interpolation='Linear',
+                        projection='EQUIRECTANGULAR')
+        node.label = key
+        node[BAKE_FILE] = key
+        self.link(d, node.inputs["Vector"])
+        return node.outputs["Color"]
+
+    def table(self, key, u, v):
+        """A baked table at (u, v), bilinear, for (u, v) within the texel centres' range.
+        Read by an Environment Texture node toward the direction that Blender's
+        equirectangular mapping takes to (u, v), phi = 2 pi (0.5 - u), theta = pi (v - 0.5):
+        one bilinear lookup without mip-maps in both Cycles and EEVEE (an Image Texture
+        node's Linear lookups use mip-maps in EEVEE). The round trip through the angles costs
+        about 1e-6 of a texel."""
+        phi = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [0.5, u]),
+                                          6.283185307179586])
+        theta = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [v, 0.5]),
+                                            3.141592653589793])
+        cos_theta = self.call("math.COSINE", [theta])
+        return self.lookup(key, self.call("vec3", [
+            self.call("math.MULTIPLY", [cos_theta, self.call("math.COSINE", [phi])]),
+            self.call("math.MULTIPLY", [cos_theta, self.call("math.SINE", [phi])]),
+            self.call("math.SINE", [theta])]))
 
 
 def _interface(group):
@@ -314,25 +329,68 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     _interface(group)
     b = _Builder(group, data)
     b.group_in.location = (-600, 0)
-    # the views, selected by the View input: sum over k of (View == k) x view_k
     b.current_frame = "views"
     b.frames["views"] = b.frame("views")
-    b.frames["views"].label = "View (term isolation)"
-    total = None
-    for k, (view, text) in enumerate(data["views"].items()):
-        value = b.value(parse(text))
-        b.current_frame = "views"
-        on = b.call("math.COMPARE", [b.socket("in.View"), float(k), 0.5])
-        term = b.call("vec.SCALE", [value, on])
-        total = term if total is None else b.call("vec.ADD", [total, term])
-    emission = b.new("ShaderNodeEmission")
-    b.link(total, emission.inputs["Color"])
-    emission.inputs["Strength"].default_value = 1.0
+    b.frames["views"].label = "View (term isolation) and the output"
+    view_on = [b.call("math.COMPARE", [b.socket("in.View"), float(k), 0.5])
+               for k in range(len(data["views"]))]
+
+    def select(mode):
+        """The chosen view: the sum over k of (View == k) x view_k."""
+        b.mode = mode
+        total = None
+        for on, text in zip(view_on, data["views"].values()):
+            term = b.call("vec.SCALE", [b.value(parse(text)), on])
+            b.current_frame = "views"
+            total = term if total is None else b.call("vec.ADD", [total, term])
+        return total
+
+    colour = select("colour")
+    emission = _prefiltered_closures(b, data, view_on, select("emission"))
     out = group.nodes.new("NodeGroupOutput")
     out.location = (2800, 0)
-    group.links.new(emission.outputs["Emission"], out.inputs["Emission"])
-    group.links.new(total, out.inputs["Value"])
+    group.links.new(emission, out.inputs["Emission"])
+    group.links.new(colour, out.inputs["Value"])
     return group
+
+
+def _prefiltered_closures(b: _Builder, data: dict, view_on: list, rest):
+    """The Emission output: the view's colour without the pre-filtered radiance, plus that
+    radiance, sum_k max(0, 1 - |x - k|) L_k(dir) * factor, as a chain of Mix Shader nodes,
+    M_6 = L_6, M_k = mix(L_k, M_k+1, clamp(x - k, 0, 1)). For x in [j, j + 1] this is
+    (1 - f) L_j + f L_j+1, the same sum; Cycles skips the branch of a Mix Shader whose weight
+    is zero, so it reads two levels, not seven. The views are sums of terms, so the
+    radiance enters each view that uses it with the same factor."""
+    b.current_frame = "views"
+    x, direction, factor = b.prefiltered_args
+    uses = [b.uses_prefiltered(parse(text)) for text in data["views"].values()]
+    weight = None
+    for on, used in zip(view_on, uses):
+        if used:
+            weight = on if weight is None else b.call("math.ADD", [weight, on])
+    factor = b.call("vec.SCALE", [factor, weight])
+
+    def emit(colour):
+        node = b.new("ShaderNodeEmission")
+        b.link(colour, node.inputs["Color"])
+        node.inputs["Strength"].default_value = 1.0
+        return node.outputs["Emission"]
+
+    def level(k):
+        return emit(b.call("vec.MULTIPLY", [b.environment(f"specular_{k}", direction), factor]))
+
+    chain = level(LEVEL_COUNT - 1)
+    for k in range(LEVEL_COUNT - 2, -1, -1):
+        mix = b.new("ShaderNodeMixShader")
+        mix.label = f"levels {k}-{LEVEL_COUNT - 1}"
+        b.link(b.call("math.SUBTRACT!", [x, float(k)]), mix.inputs["Fac"])
+        b.link(level(k), mix.inputs[1])
+        b.link(chain, mix.inputs[2])
+        chain = mix.outputs["Shader"]
+    add = b.new("ShaderNodeAddShader")
+    b.link(emit(rest), add.inputs[0])
+    b.link(chain, add.inputs[1])
+    return add.outputs["Shader"]
 
 
 SOURCE_HASH = "ctlab_source_hash"
