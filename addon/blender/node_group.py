@@ -29,6 +29,8 @@ BAKE_DIM = "ctlab_bake_dim"             # value nodes: that file's width or heig
 SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "NodeSocketColor",
                 "VECTOR": "NodeSocketVector", "SHADER": "NodeSocketShader"}
 VECTOR_VALUE_OPS = {"DOT_PRODUCT", "LENGTH", "DISTANCE"}
+# Terms that the Emission output adds as closures which Cycles can skip (the file's header)
+CLOSURE_OPS = ("gated", "prefiltered")
 
 
 def load_description(path: Path = DESCRIPTION) -> dict:
@@ -105,15 +107,26 @@ class _Builder:
         self.horizontal = {}                # direction socket -> (|d.z|, hypot(d.x, d.y))
         # "colour": every term as a colour (the Value output); "emission": the pre-filtered
         # radiance left out, for build_group to add as closures (the Emission output)
+        # "colour": every term as a colour (the Value output); "emission": the closure terms
+        # (CLOSURE_OPS) left out, for build_group to add as closures (the Emission output)
         self.mode = "colour"
-        self.prefiltered_args = None
+        self.closure_terms = {}             # name -> (op, built arguments), in emission mode
+        self.closure_names = []
+        for name, (_, tree) in self.exprs.items():
+            if tree[0] == "call" and tree[1] in CLOSURE_OPS:
+                self.closure_names.append(name)
+        self._depends = {}
 
-    def uses_prefiltered(self, tree) -> bool:
-        """Whether an expression depends on the pre-filtered levels (``prefiltered``)."""
+    def depends(self, tree, names) -> bool:
+        """Whether an expression refers, directly or not, to one of the named nodes."""
         if tree[0] == "call":
-            return tree[1] == "prefiltered" or any(self.uses_prefiltered(a) for a in tree[2])
+            return any(self.depends(a, names) for a in tree[2])
         if tree[0] == "ref" and tree[1] in self.exprs:
-            return self.uses_prefiltered(self.exprs[tree[1]][1])
+            key = (tree[1], tuple(names))
+            if key not in self._depends:
+                self._depends[key] = tree[1] in names or self.depends(self.exprs[tree[1]][1],
+                                                                      names)
+            return self._depends[key]
         return False
 
     def frame(self, key):
@@ -158,13 +171,18 @@ class _Builder:
         if name not in self.exprs:
             raise UserError(f"node description: unknown name {name!r}")
         frame, tree = self.exprs[name]
-        key = (name, self.mode if self.uses_prefiltered(tree) else None)
+        key = (name, self.mode if self.depends(("ref", name), self.closure_names) else None)
         if key in self.built:
             return self.built[key]
+        if self.mode == "emission" and name in self.closure_names:
+            # left out of the colour: build_group adds it as closures
+            self.closure_terms[name] = (tree[1], [self.value(a) for a in tree[2]])
+            self.built[key] = 0.0
+            return 0.0
         saved, self.current_frame = self.current_frame, frame
         sock = self.value(tree)
         self.current_frame = saved
-        if isinstance(sock, bpy.types.NodeSocket):
+        if isinstance(sock, bpy.types.NodeSocket) and not sock.node.label:
             sock.node.label = name
         self.built[key] = sock
         return sock
@@ -225,12 +243,10 @@ class _Builder:
             return self.environment(args[0], args[1])
         if op == "table":
             return self.table(args[0], args[1], args[2])
+        if op == "gated":
+            return args[1]
         if op == "prefiltered":
             x, direction, factor = args
-            if self.mode == "emission":
-                # left out of the colour: build_group adds it as a mix of closures
-                self.prefiltered_args = (x, direction, factor)
-                return 0.0
             total = None
             for k in range(LEVEL_COUNT):
                 # hat weight max(0, 1 - |x - k|): the two neighbouring levels, blended linearly
@@ -346,7 +362,7 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
         return total
 
     colour = select("colour")
-    emission = _prefiltered_closures(b, data, view_on, select("emission"))
+    emission = _closures(b, data, view_on, select("emission"))
     out = group.nodes.new("NodeGroupOutput")
     out.location = (2800, 0)
     group.links.new(emission, out.inputs["Emission"])
@@ -354,21 +370,18 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     return group
 
 
-def _prefiltered_closures(b: _Builder, data: dict, view_on: list, rest):
-    """The Emission output: the view's colour without the pre-filtered radiance, plus that
-    radiance, sum_k max(0, 1 - |x - k|) L_k(dir) * factor, as a chain of Mix Shader nodes,
-    M_6 = L_6, M_k = mix(L_k, M_k+1, clamp(x - k, 0, 1)). For x in [j, j + 1] this is
-    (1 - f) L_j + f L_j+1, the same sum; Cycles skips the branch of a Mix Shader whose weight
-    is zero, so it reads two levels, not seven. The views are sums of terms, so the
-    radiance enters each view that uses it with the same factor."""
+def _closures(b: _Builder, data: dict, view_on: list, rest):
+    """The Emission output: the view's colour without its closure terms, plus each term as
+    an Emission closure behind Mix Shader nodes, whose zero-weight branches Cycles skips with
+    every node that only they use. The views are sums of terms, so a term enters each view
+    that uses it once, with weight (View == k).
+
+    - ``gated(c, X)``: mix(nothing, X, c > 0), for a term that is zero where c <= 0 (the
+      direct light where n.l <= 0).
+    - ``prefiltered(x, dir, c)``: sum_k max(0, 1 - |x - k|) L_k(dir) c as a chain,
+      M_6 = L_6 c, M_k = mix(L_k c, M_k+1, clamp(x - k, 0, 1)). For x in [j, j + 1] this is
+      (1 - f) L_j c + f L_j+1 c, the same sum, and Cycles reads two levels, not seven."""
     b.current_frame = "views"
-    x, direction, factor = b.prefiltered_args
-    uses = [b.uses_prefiltered(parse(text)) for text in data["views"].values()]
-    weight = None
-    for on, used in zip(view_on, uses):
-        if used:
-            weight = on if weight is None else b.call("math.ADD", [weight, on])
-    factor = b.call("vec.SCALE", [factor, weight])
 
     def emit(colour):
         node = b.new("ShaderNodeEmission")
@@ -376,21 +389,41 @@ def _prefiltered_closures(b: _Builder, data: dict, view_on: list, rest):
         node.inputs["Strength"].default_value = 1.0
         return node.outputs["Emission"]
 
-    def level(k):
-        return emit(b.call("vec.MULTIPLY", [b.environment(f"specular_{k}", direction), factor]))
+    def mix(fac, first, second, label):
+        node = b.new("ShaderNodeMixShader")
+        node.label = label
+        b.link(fac, node.inputs["Fac"])
+        if first is not None:
+            b.link(first, node.inputs[1])
+        b.link(second, node.inputs[2])
+        return node.outputs["Shader"]
 
-    chain = level(LEVEL_COUNT - 1)
-    for k in range(LEVEL_COUNT - 2, -1, -1):
-        mix = b.new("ShaderNodeMixShader")
-        mix.label = f"levels {k}-{LEVEL_COUNT - 1}"
-        b.link(b.call("math.SUBTRACT!", [x, float(k)]), mix.inputs["Fac"])
-        b.link(level(k), mix.inputs[1])
-        b.link(chain, mix.inputs[2])
-        chain = mix.outputs["Shader"]
-    add = b.new("ShaderNodeAddShader")
-    b.link(emit(rest), add.inputs[0])
-    b.link(chain, add.inputs[1])
-    return add.outputs["Shader"]
+    total = emit(rest)
+    for name, (op, args) in b.closure_terms.items():
+        weight = None
+        for on, text in zip(view_on, data["views"].values()):
+            if b.depends(parse(text), [name]):
+                weight = on if weight is None else b.call("math.ADD", [weight, on])
+        if op == "gated":
+            c, colour = args
+            closure = mix(b.call("math.GREATER_THAN", [c, 0.0]), None,
+                          emit(b.call("vec.SCALE", [colour, weight])), name)
+        else:
+            x, direction, factor = args
+            factor = b.call("vec.SCALE", [factor, weight])
+
+            def level(k):
+                return emit(b.call("vec.MULTIPLY", [
+                    b.environment(f"specular_{k}", direction), factor]))
+            closure = level(LEVEL_COUNT - 1)
+            for k in range(LEVEL_COUNT - 2, -1, -1):
+                closure = mix(b.call("math.SUBTRACT!", [x, float(k)]), level(k), closure,
+                              f"{name}: levels {k}-{LEVEL_COUNT - 1}")
+        add = b.new("ShaderNodeAddShader")
+        b.link(total, add.inputs[0])
+        b.link(closure, add.inputs[1])
+        total = add.outputs["Shader"]
+    return total
 
 
 SOURCE_HASH = "ctlab_source_hash"
