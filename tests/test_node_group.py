@@ -249,3 +249,76 @@ def test_eevee_renders_the_group_like_cycles(tmp_path):
             assert np.median(rel) < 1e-3 and np.percentile(rel, 95) < 0.1, (
                 view, np.median(rel), np.percentile(rel, 95))
             assert abs(b.mean() - a.mean()) < 1e-2 * a.mean(), (view, a.mean(), b.mean())
+
+
+def test_lookups_clamp_at_the_poles(tmp_path):
+    """Cycles' Environment Texture wraps t where the model clamps it to the first and last
+    rows' centres, so the group limits each lookup's elevation to half a row from a pole
+    (node_group.environment). Under a sky of radiance 1 + 0.9 sin(elevation) (top row 1.9,
+    bottom 0.1) a mirror and a rough sphere 90 px wide reflect the zenith inside that band
+    (2.8 degrees for the roughest level, 32 rows). Measured on 4.5 and 5.2: every pixel within
+    3.2e-5 of the OSL shader (bound 1e-3); without the clamp (mutation), 12 pixels near the
+    zenith blend in the bottom row, up to 96% off."""
+    from addon.core.hdri import write_float_exr
+    h, w = 128, 256
+    e = (0.5 - (np.arange(h) + 0.5) / h) * np.pi
+    sky = np.repeat((1 + 0.9 * np.sin(e))[:, None], w, axis=1)
+    hdri = tmp_path / "sky.exr"
+    write_float_exr(hdri, np.repeat(sky[:, :, None], 3, axis=2).astype(np.float32))
+    kw = dict(view=("indirect_specular", "indirect_diffuse"), grid=(2, 1), size=192, samples=1,
+              pixel_centres=True, sun_strength=0.0, hdri=str(hdri), ibl="split_sum")
+    osl, scene = render(tmp_path / "osl", shader="osl", **kw)
+    nodes, _ = render(tmp_path / "nodes", shader="nodes", **kw)
+    m = np.zeros((scene["height"], scene["width"]), dtype=bool)
+    for cell in scene["cells"]:
+        m |= sphere_pixels(scene, cell)
+    for view in kw["view"]:
+        a, b = nodes[view][m].astype(np.float64), osl[view][m].astype(np.float64)
+        rel = np.abs(a - b) / np.maximum(np.abs(b), 1e-3)
+        assert rel.max() < 1e-3, (view, rel.max(), int((rel > 1e-3).sum()))
+
+
+def test_the_value_output_is_the_emission_output(tmp_path):
+    """The group's two outputs are built apart: Emission adds its closure terms (the direct
+    light behind a Mix Shader of weight n.l > 0, the pre-filtered levels as a chain of Mix
+    Shaders) to the rest of the view, Value is the plain colour sum. Each view that holds a
+    closure term must read the same through both, in both IBL modes, with the Sun lighting some
+    pixels and not others. Mutations: the gate at n.l > 0.3 puts 15% of the values off by up to
+    52%; the chain's weights shifted by half a level fail both this test and the poles' one."""
+    import bpy
+    from addon.blender import model_node, renderer, scene_builder
+    from addon.core.compare import read_image
+    from addon.core.model import ModelOptions
+    from addon.core.settings import MatrixSettings
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    s = MatrixSettings(rows=3, cols=3, width=72, height=72, shader="nodes",
+                       sun_to_light=(0.6, 0.3, 0.5), sun_strength=3.0,
+                       model=ModelOptions(view="full", ibl="split_sum"))
+    described = scene_builder.build_matrix(scene, s)
+    mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
+    node = model_node.find(mat)
+    nt = mat.node_tree
+    out = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    colour = nt.nodes.new("ShaderNodeEmission")
+    nt.links.new(node.outputs["Value"], colour.inputs["Color"])
+    images = {}
+    for output in ("Emission", "Value"):
+        nt.links.new(node.outputs["Emission"] if output == "Emission" else colour.outputs[0],
+                     out.inputs["Surface"])
+        for ibl in ("split_sum", "unity"):
+            for view in ("full", "direct", "indirect", "indirect_specular"):
+                model_node.set_options(node, ModelOptions(view=view, ibl=ibl))
+                renderer.configure(scene, "nodes", view, 1, pixel_centres=True)
+                folder = tmp_path / output / ibl / view
+                renderer.render(scene, folder, {}, log_path=tmp_path / "log.txt")
+                images[output, ibl, view] = read_image(folder / "render.exr")
+    m = np.zeros((72, 72), dtype=bool)
+    for cell in described["cells"]:
+        m |= sphere_pixels(described, cell)
+    lit = images["Value", "split_sum", "direct"][m].max(axis=1) > 0
+    assert 0.1 < lit.mean() < 0.9          # the gate is open at some pixels, shut at others
+    for (output, ibl, view), img in images.items():
+        if output == "Value":
+            np.testing.assert_allclose(images["Emission", ibl, view][m], img[m], rtol=1e-4,
+                                       atol=1e-6, err_msg=f"{ibl} {view}")
