@@ -19,6 +19,7 @@ from pathlib import Path
 
 import bpy
 
+from . import model_node
 from .compat import eevee_engine_id
 from ..core.errors import UserError
 from ..core.files import atomic_paths, check_writable, json_text
@@ -74,13 +75,21 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
     if shader != "principled":
         cy.max_bounces = 0             # the shader integrates the lighting itself
     if scene.world is not None:
-        # The model's materials emit and have no BSDF, so nothing samples the world as a
-        # light: its importance map (built at sync by evaluating the world shader, 1.0 s of
-        # an OSL render's 1.2 s sync on 5.2) is needed for Principled alone.
-        scene.world.cycles.sampling_method = 'AUTOMATIC' if shader == "principled" else 'NONE'
+        scene.world.cycles.sampling_method = 'NONE' if _only_the_model(scene) else 'AUTOMATIC'
     scene.render.film_transparent = False
     scene.render.use_persistent_data = False
     _view_transform(scene, view)
+
+
+def _only_the_model(scene: bpy.types.Scene) -> bool:
+    """Whether every material of the scene's objects is the model's. Those emit and have no
+    BSDF, so nothing then samples the world as a light, and Cycles' importance map of the world
+    (built at sync by evaluating the world shader: 1.0 s of an OSL render's 1.2 s sync on 5.2)
+    can be left out. Any other material (Principled beside the model, in a user's scene)
+    keeps it."""
+    materials = {slot.material for obj in scene.objects for slot in obj.material_slots}
+    return bool(materials) and all(m is not None and model_node.find(m) is not None
+                                   for m in materials)
 
 
 def _view_transform(scene: bpy.types.Scene, view: str) -> None:
