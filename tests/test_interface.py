@@ -100,3 +100,19 @@ def test_every_option_round_trips_through_both_implementations(osl_node):
                 model_node.set_option(node, key, value)
                 assert model_node.get_option(node, key) == value
     assert {i.key for i in INPUTS} >= set(OPTION_VALUES)
+
+
+@pytest.mark.parametrize("view_text", ["vec.SCALE(direct, 0.5)", "vec.ADD(direct, direct)",
+                                       "vec.MULTIPLY(indirect, indirect)"])
+def test_a_closure_term_outside_a_sum_is_refused(monkeypatch, view_text):
+    """The group's Emission output adds each closure term (gated, prefiltered) once with the
+    weight of the views that hold it, so a view may hold one only once and only as a term of
+    a sum; otherwise its Emission and Value outputs would silently differ. The shipped
+    description builds (every other test); these do not."""
+    from addon.blender import node_group
+    from addon.core.errors import UserError
+    data = node_group.load_description()
+    views = dict(data["views"], full=view_text)
+    monkeypatch.setattr(node_group, "load_description", lambda *a: dict(data, views=views))
+    with pytest.raises(UserError, match="at most once, as a term of a sum"):
+        node_group.build_group("ctlab test group")

@@ -31,6 +31,7 @@ SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "Nod
 VECTOR_VALUE_OPS = {"DOT_PRODUCT", "LENGTH", "DISTANCE"}
 # Terms that the Emission output adds as closures which Cycles can skip (the file's header)
 CLOSURE_OPS = ("gated", "prefiltered")
+POLE_MARGIN = 3e-3      # radians: the least distance of a lat-long lookup from a pole
 
 
 def load_description(path: Path = DESCRIPTION) -> dict:
@@ -104,9 +105,7 @@ class _Builder:
         self.group_in = self.nodes.new("NodeGroupInput")
         self.geometry = None
         self.columns = {}
-        self.horizontal = {}                # direction socket -> (|d.z|, hypot(d.x, d.y))
-        # "colour": every term as a colour (the Value output); "emission": the pre-filtered
-        # radiance left out, for build_group to add as closures (the Emission output)
+        self.horizontal = {}                # direction socket -> environment()'s parts
         # "colour": every term as a colour (the Value output); "emission": the closure terms
         # (CLOSURE_OPS) left out, for build_group to add as closures (the Emission output)
         self.mode = "colour"
@@ -128,6 +127,18 @@ class _Builder:
                                                                       names)
             return self._depends[key]
         return False
+
+    def additive_count(self, tree, name):
+        """How many times the closure term ``name`` enters an expression as a term of a sum
+        (through vec.ADD alone), or None where it enters any other way."""
+        if not self.depends(tree, [name]):
+            return 0
+        if tree[0] == "ref":
+            return 1 if tree[1] == name else self.additive_count(self.exprs[tree[1]][1], name)
+        if tree[1] != "vec.ADD":
+            return None
+        counts = [self.additive_count(a, name) for a in tree[2]]
+        return None if None in counts else sum(counts)
 
     def frame(self, key):
         if key not in self.frames:
@@ -271,20 +282,33 @@ class _Builder:
         """A baked lat-long file toward d: an Environment Texture node, Linear (bilinear at
         texel centres, no mip-maps in Cycles or EEVEE; Blender's equirectangular mapping, s
         periodic). The model clamps t to the centres of the first and last rows; Cycles
-        wraps it, so d's elevation is limited here to half a row from each pole,
-        pi/2 - pi/(2H): the horizontal part is scaled by k = max(1, |d.z| tan(pi/(2H)) / h)."""
+        wraps it (REPEAT), mixing the two poles. So d's elevation is limited here to
+        pi/2 - delta: its horizontal part h is scaled by k = max(1, |d.z| tan(delta) / h), and
+        a direction exactly at a pole (h = 0, a flat floor's normal) is given the horizontal
+        part |d.z| tan(delta) along +x, where the model's s is 0.5 as well.
+
+        delta is half a row, pi/(2H), but at least POLE_MARGIN: Cycles finds t from
+        acos(d.z / |d|) in float32, which cannot resolve half a row of a tall image (at
+        H = 1024 it overshot the last row's centre by 1% of a row, at H = 4096 by half a
+        row). For H > 524 the lookup reads a little below the last row's centre instead."""
         if d not in self.horizontal:
             dx, dy, dz = (self.call(c, [d]) for c in ("x", "y", "z"))
             h = self.call("math.SQRT", [self.call("math.ADD", [
                 self.call("math.MULTIPLY", [dx, dx]), self.call("math.MULTIPLY", [dy, dy])])])
+            at_pole = self.call("math.LESS_THAN", [h, 1e-20])
             self.horizontal[d] = (self.call("math.ABSOLUTE", [dz]),
-                                  self.call("math.MAXIMUM", [h, 1e-20]))
-        abs_z, h = self.horizontal[d]
-        tan_half_row = self.call("math.TANGENT", [
-            self.call("math.DIVIDE", [1.5707963267948966, self.dimension(key, "height")])])
-        k = self.call("math.MAXIMUM", [1.0, self.call("math.DIVIDE", [
-            self.call("math.MULTIPLY", [abs_z, tan_half_row]), h])])
-        return self.lookup(key, self.call("vec.MULTIPLY", [d, self.call("vec3", [k, k, 1.0])]))
+                                  self.call("math.MAXIMUM", [h, 1e-20]),
+                                  at_pole, self.call("math.SUBTRACT", [1.0, at_pole]))
+        abs_z, h, at_pole, off_pole = self.horizontal[d]
+        delta = self.call("math.MAXIMUM", [self.call("math.DIVIDE", [
+            1.5707963267948966, self.dimension(key, "height")]), POLE_MARGIN])
+        least = self.call("math.MULTIPLY", [abs_z, self.call("math.TANGENT", [delta])])
+        k = self.call("math.MULTIPLY", [self.call("math.MAXIMUM", [
+            1.0, self.call("math.DIVIDE", [least, h])]), off_pole])
+        clamped = self.call("vec.ADD", [
+            self.call("vec.MULTIPLY", [d, self.call("vec3", [k, k, 1.0])]),
+            self.call("vec3", [self.call("math.MULTIPLY", [least, at_pole]), 0.0, 0.0])])
+        return self.lookup(key, clamped)
 
     def lookup(self, key, d):
         node = self.new("ShaderNodeTexEnvironment", interpolation='Linear',
@@ -300,7 +324,8 @@ class _Builder:
         equirectangular mapping takes to (u, v), phi = 2 pi (0.5 - u), theta = pi (v - 0.5):
         one bilinear lookup without mip-maps in both Cycles and EEVEE (an Image Texture
         node's Linear lookups use mip-maps in EEVEE). The round trip through the angles costs
-        about 1e-6 of a texel."""
+        up to 4e-5 of a texel in float32; (u, v) stays half a texel inside the edges, so the
+        wrapped neighbour's weight is at most about 4e-6."""
         phi = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [0.5, u]),
                                           6.283185307179586])
         theta = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [v, 0.5]),
@@ -401,8 +426,13 @@ def _closures(b: _Builder, data: dict, view_on: list, rest):
     total = emit(rest)
     for name, (op, args) in b.closure_terms.items():
         weight = None
-        for on, text in zip(view_on, data["views"].values()):
-            if b.depends(parse(text), [name]):
+        for on, (view, text) in zip(view_on, data["views"].items()):
+            count = b.additive_count(parse(text), name)
+            if count not in (0, 1):
+                raise UserError(f"node description: the view {view!r} must hold {name!r} at "
+                                "most once, as a term of a sum (vec.ADD), since the group's "
+                                "Emission output adds it as a closure")
+            if count:
                 weight = on if weight is None else b.call("math.ADD", [weight, on])
         if op == "gated":
             c, colour = args
