@@ -114,9 +114,12 @@ def bench_render(quick: bool, work: Path) -> dict:
         n = 1 if "eevee" in name else pairs         # EEVEE on a CPU is slow: one pair
         r_render, r_process = [], []
         for i in range(n):
-            a = render(name, work / f"{name}-{i}".replace(" ", "_"), **scene)
-            b = render("principled", work / f"principled-{name}-{i}".replace(" ", "_"), **scene)
-            rows += [a, b]
+            # A B, then B A: neither renderer always runs first
+            order = [name, "principled"] if i % 2 == 0 else ["principled", name]
+            done = {r: render(r, work / f"{r}-{name}-{i}".replace(" ", "_"), **scene)
+                    for r in order}
+            a, b = done[name], done["principled"]
+            rows += [done[r] for r in order]
             r_render.append(a["render_seconds"] / b["render_seconds"])
             r_process.append(a["process_seconds"] / b["process_seconds"])
             print(f"{name}: {a['render_seconds']:.2f} s / principled {b['render_seconds']:.2f} s",
@@ -131,7 +134,7 @@ def render_table(section: dict) -> list:
     sc = section["scene"]
     lines = [f"Scene: {sc['grid']} spheres, {sc['size']} px, {sc['samples']} samples, forest.exr "
              "(the main job's). Render time = Cycles' sync + render (scene.json); process = "
-             "the whole `ctlab render` process. Ratio = median over A B pairs.", "",
+             "the whole `ctlab render` process. Ratio = median over pairs (A B, B A, A B; EEVEE one pair).", "",
              "| renderer | pairs | render / Principled | process / Principled | each pair |",
              "|---|---|---|---|---|"]
     for name, r in section["ratios_over_principled"].items():
@@ -204,7 +207,8 @@ def bench_error(quick: bool, work: Path) -> dict:
     the fixed sync cost weighs least). The converged image's own noise (1/8 of the error's
     variance at 128 samples) is left in: it flatters no renderer. The reference integrator
     is also measured with 1, 2 and 8 samples per shading point against the same converged
-    image (its default is 4)."""
+    image (its default is 4); that image's own noise then weighs more against the less noisy
+    variants, so 8 samples is, if anything, flattered less than 1."""
     grid, size = "7x7", 256
     counts = (8, 32) if quick else (8, 16, 32, 64, 128)
     ref_samples = 256 if quick else 1024
@@ -360,22 +364,33 @@ def main():
                 results["main"] = bench_main(work)
             else:
                 results["bake"] = bench_bake()
+            results[section]["machine"] = results["machine"]
     OUT.mkdir(exist_ok=True)
     (OUT / "results.json").write_text(json.dumps(results, indent=2))
-    m = results["machine"]
-    lines = [f"Measured on {m['cpu']}, {m['cores']} cores, {m['memory_gib']} GiB, "
-             f"{m['platform']}; Blender {m['blender']} (Python {m['python']}, numpy "
-             f"{m['numpy']}); {m['device']}.", ""]
+    def described(m):
+        return (f"Measured on {m['cpu']}, {m['cores']} cores, {m['memory_gib']} GiB, "
+                f"{m['platform']}; Blender {m['blender']} (Python {m['python']}, numpy "
+                f"{m['numpy']}); {m['device']}.")
+    kept = {json.dumps(results[k]["machine"], sort_keys=True) for k in SECTIONS if k in results}
+    lines = [described(results["machine"]), ""] if len(kept) <= 1 else \
+        ["Sections measured on different machines or versions: each says which.", ""]
+    if len(kept) > 1:
+        for k in SECTIONS:
+            if k in results:
+                results[k]["note"] = described(results[k]["machine"])
+    def head(title, key):
+        note = results[key].get("note") if len(kept) > 1 else None
+        return [f"### {title}", ""] + ([note, ""] if note else [])
     if "render" in results:
-        lines += ["### Render time at equal samples", ""] + render_table(results["render"]) + [""]
+        lines += head("Render time at equal samples", "render") + render_table(results["render"]) + [""]
     if "error" in results:
-        lines += ["### Equal error", ""] + error_table(results["error"]) + [""]
+        lines += head("Equal error", "error") + error_table(results["error"]) + [""]
     if "main" in results:
-        lines += ["### The main job", "",
-                  f"`{results['main']['command']}` at its defaults: "
-                  f"**{results['main']['wall_seconds']:.0f} s** wall (the whole process).", ""]
+        lines += head("The main job", "main") + [
+            f"`{results['main']['command']}` at its defaults: "
+            f"**{results['main']['wall_seconds']:.0f} s** wall (the whole process).", ""]
     if "bake" in results:
-        lines += ["### Bake (split-sum files)", ""] + bake_table(results["bake"]) + [""]
+        lines += head("Bake (split-sum files)", "bake") + bake_table(results["bake"]) + [""]
     (OUT / "results.md").write_text("\n".join(lines))
     print("\n".join(lines))
 
