@@ -251,6 +251,17 @@ def test_eevee_renders_the_group_like_cycles(tmp_path):
             assert abs(b.mean() - a.mean()) < 1e-2 * a.mean(), (view, a.mean(), b.mean())
 
 
+def _sky_with_distinct_poles(path, w):
+    """A w x w/2 lat-long sky of radiance 1 + 0.9 sin(elevation): 1.9 at the top row, 0.1 at
+    the bottom, so a lookup that wraps from one pole to the other is far off."""
+    from addon.core.hdri import write_float_exr
+    h = w // 2
+    e = (0.5 - (np.arange(h) + 0.5) / h) * np.pi
+    sky = np.repeat((1 + 0.9 * np.sin(e))[:, None], w, axis=1)
+    write_float_exr(path, np.repeat(sky[:, :, None], 3, axis=2).astype(np.float32))
+    return path
+
+
 def test_lookups_clamp_at_the_poles(tmp_path):
     """Cycles' Environment Texture wraps t where the model clamps it to the first and last
     rows' centres, so the group limits each lookup's elevation to half a row from a pole
@@ -259,12 +270,7 @@ def test_lookups_clamp_at_the_poles(tmp_path):
     (2.8 degrees for the roughest level, 32 rows). Measured on 4.5 and 5.2: every pixel within
     3.2e-5 of the OSL shader (bound 1e-3); without the clamp (mutation), 12 pixels near the
     zenith blend in the bottom row, up to 96% off."""
-    from addon.core.hdri import write_float_exr
-    h, w = 128, 256
-    e = (0.5 - (np.arange(h) + 0.5) / h) * np.pi
-    sky = np.repeat((1 + 0.9 * np.sin(e))[:, None], w, axis=1)
-    hdri = tmp_path / "sky.exr"
-    write_float_exr(hdri, np.repeat(sky[:, :, None], 3, axis=2).astype(np.float32))
+    hdri = _sky_with_distinct_poles(tmp_path / "sky.exr", 256)
     kw = dict(view=("indirect_specular", "indirect_diffuse"), grid=(2, 1), size=192, samples=1,
               pixel_centres=True, sun_strength=0.0, hdri=str(hdri), ibl="split_sum")
     osl, scene = render(tmp_path / "osl", shader="osl", **kw)
@@ -335,15 +341,9 @@ def test_a_flat_floor_reads_the_pole_like_the_osl_shader(tmp_path):
     from addon.blender import materials, model_node, renderer
     from addon.core import ibl_bake
     from addon.core.compare import read_image
-    from addon.core.hdri import write_float_exr
     from addon.core.model import Lighting, ModelOptions
     for w in (256, 4096):
-        h = w // 2
-        e = (0.5 - (np.arange(h) + 0.5) / h) * np.pi
-        sky = np.repeat((1 + 0.9 * np.sin(e))[:, None], w, axis=1)
-        hdri = tmp_path / f"sky{w}.exr"
-        write_float_exr(hdri, np.repeat(sky[:, :, None], 3, axis=2).astype(np.float32))
-        bake = ibl_bake.bake(hdri)
+        bake = ibl_bake.bake(_sky_with_distinct_poles(tmp_path / f"sky{w}.exr", w))
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
         bpy.ops.mesh.primitive_plane_add(size=2)
