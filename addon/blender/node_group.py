@@ -373,21 +373,22 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     b.current_frame = "views"
     b.frames["views"] = b.frame("views")
     b.frames["views"].label = "View (term isolation) and the output"
+    views = {view: parse(text) for view, text in data["views"].items()}
     view_on = [b.call("math.COMPARE", [b.socket("in.View"), float(k), 0.5])
-               for k in range(len(data["views"]))]
+               for k in range(len(views))]
 
     def select(mode):
         """The chosen view: the sum over k of (View == k) x view_k."""
         b.mode = mode
         total = None
-        for on, text in zip(view_on, data["views"].values()):
-            term = b.call("vec.SCALE", [b.value(parse(text)), on])
+        for on, tree in zip(view_on, views.values()):
+            term = b.call("vec.SCALE", [b.value(tree), on])
             b.current_frame = "views"
             total = term if total is None else b.call("vec.ADD", [total, term])
         return total
 
     colour = select("colour")
-    emission = _closures(b, data, view_on, select("emission"))
+    emission = _closures(b, views, view_on, select("emission"))
     out = group.nodes.new("NodeGroupOutput")
     out.location = (2800, 0)
     group.links.new(emission, out.inputs["Emission"])
@@ -395,7 +396,7 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     return group
 
 
-def _closures(b: _Builder, data: dict, view_on: list, rest):
+def _closures(b: _Builder, views: dict, view_on: list, rest):
     """The Emission output: the view's colour without its closure terms, plus each term as
     an Emission closure behind Mix Shader nodes, whose zero-weight branches Cycles skips with
     every node that only they use. The views are sums of terms, so a term enters each view
@@ -426,8 +427,8 @@ def _closures(b: _Builder, data: dict, view_on: list, rest):
     total = emit(rest)
     for name, (op, args) in b.closure_terms.items():
         weight = None
-        for on, (view, text) in zip(view_on, data["views"].items()):
-            count = b.additive_count(parse(text), name)
+        for on, (view, tree) in zip(view_on, views.items()):
+            count = b.additive_count(tree, name)
             if count not in (0, 1):
                 raise UserError(f"node description: the view {view!r} must hold {name!r} at "
                                 "most once, as a term of a sum (vec.ADD), since the group's "
