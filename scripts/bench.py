@@ -16,6 +16,7 @@ version, the renderer, the scene and the model's sources).
 """
 
 import argparse
+import functools
 import hashlib
 import json
 import os
@@ -35,6 +36,7 @@ import numpy as np  # noqa: E402
 
 import addon.blender  # noqa: E402,F401  (exposes Blender's bundled OpenImageIO)
 from addon.core.compare import cell_mask, ciede2000, load_render, srgb_to_lab  # noqa: E402
+from addon.core.files import atomic_folder  # noqa: E402
 
 OUT = ROOT / "bench"
 CACHE = ROOT / "out" / "bench-cache"
@@ -53,9 +55,12 @@ RENDERERS = {
     "nodes split_sum (eevee)": ["--shader", "nodes", "--ibl", "split_sum", "--engine", "eevee"],
 }
 # The reference integrator's samples per shading point (each of BSDF and environment
-# sampling; the default is 4), in the equal-error study only: the same converged image.
-ENV_VARIANTS = {f"osl reference (env {n})": ["--shader", "osl", "--ibl", "reference",
-                                             "--env-samples", str(n)] for n in (1, 2, 8)}
+# sampling; the default is 4), in the equal-error study only, against the converged image
+# of the renderer they vary.
+ENV_VARIANTS = {f"osl reference (env {n})": RENDERERS["osl reference"] + ["--env-samples", str(n)]
+                for n in (1, 2, 8)}
+CONVERGED_AS = dict.fromkeys(ENV_VARIANTS, "osl reference")
+ARGS = {**RENDERERS, **ENV_VARIANTS}
 MAIN_SCENE = {"grid": "7x7", "size": 512, "samples": 64}      # the main job's defaults
 
 
@@ -81,7 +86,7 @@ def machine() -> dict:
 
 def render(name: str, out: Path, grid: str, size: int, samples: int, seed: int = 0) -> dict:
     """One render of the sphere matrix in a child process: its times and folder."""
-    cmd = [sys.executable, str(CTLAB), "render", *{**RENDERERS, **ENV_VARIANTS}[name], "--grid", grid,
+    cmd = [sys.executable, str(CTLAB), "render", *ARGS[name], "--grid", grid,
            "--size", str(size), "--samples", str(samples), "--seed", str(seed),
            "--out", str(out)]
     start = time.perf_counter()
@@ -103,8 +108,9 @@ def render(name: str, out: Path, grid: str, size: int, samples: int, seed: int =
 # --- Render time at equal samples ---------------------------------------------------------
 
 def bench_render(quick: bool, work: Path) -> dict:
-    """Each renderer against Principled in A B A B pairs at the main job's scene; the median
-    of the pairs' ratios (render time, and the whole process's wall time beside)."""
+    """Each renderer against Principled in pairs at the main job's scene, the pairs' order
+    alternating; the median of the pairs' ratios (render time, and the whole process's wall
+    time beside)."""
     scene = dict(MAIN_SCENE, size=256, samples=16) if quick else MAIN_SCENE
     pairs = 1 if quick else 3
     rows, ratios = [], {}
@@ -157,6 +163,7 @@ CLASSES = {"smooth metal": lambda m, s: m >= 0.5 and s >= 0.5,
            "rough dielectric": lambda m, s: m < 0.5 and s < 0.5}
 
 
+@functools.cache
 def _sources_digest() -> str:
     h = hashlib.sha256()
     for p in sorted((ROOT / "osl").glob("*.osl")) + sorted((ROOT / "node_groups").glob("*.toml")) \
@@ -170,13 +177,13 @@ def converged(name: str, grid: str, size: int, samples: int) -> Path:
     key = f"{bpy.app.version_string}-{name}-{grid}-{size}-{samples}-{_sources_digest()}"
     folder = CACHE / key.replace(" ", "_").replace("(", "").replace(")", "")
     if not (folder / "scene.json").is_file():
-        tmp = folder.with_name(folder.name + f".tmp{os.getpid()}")
-        shutil.rmtree(tmp, ignore_errors=True)
-        tmp.parent.mkdir(parents=True, exist_ok=True)
-        row = render(name, tmp, grid, size, samples, seed=1)
-        print(f"converged {name}: {samples} samples, {row['render_seconds']:.1f} s", flush=True)
         shutil.rmtree(folder, ignore_errors=True)
-        tmp.rename(folder)
+
+        def fill(stage):
+            row = render(name, stage, grid, size, samples, seed=1)
+            print(f"converged {name}: {samples} samples, {row['render_seconds']:.1f} s",
+                  flush=True)
+        atomic_folder(folder, fill)
     return folder
 
 
@@ -215,7 +222,7 @@ def bench_error(quick: bool, work: Path) -> dict:
     names = [n for n in RENDERERS if "eevee" not in n] + ([] if quick else list(ENV_VARIANTS))
     series = {}
     for name in names:
-        ref = converged(name.split(" (env")[0], grid, size, ref_samples)
+        ref = converged(CONVERGED_AS.get(name, name), grid, size, ref_samples)
         rows = []
         for n in counts:
             r = render(name, work / f"err-{name}-{n}".replace(" ", "_"), grid, size, n)
