@@ -78,6 +78,40 @@ CLI_CASES = {
     "compare-nan": (["compare", "@RENDER:nan", "@RENDER:good"], "holds 1 NaN/Inf pixel(s)"),
     "compare-size-mismatch": (["compare", "@RENDER:wrongsize", "@RENDER:good"],
                               "but scene.json says 32x32"),
+    # --lights FILE.json (@LIGHTS:<key of LIGHTS_FILES>)
+    "lights-missing": (RENDER + ["--lights", "@NOFILE"], "lights file"),
+    "lights-not-json": (RENDER + ["--lights", "@LIGHTS:not-json"], "is not JSON"),
+    "lights-not-list": (RENDER + ["--lights", "@LIGHTS:not-list"],
+                        "expected a non-empty list of lights"),
+    "lights-too-many": (RENDER + ["--lights", "@LIGHTS:too-many"],
+                        "9 lights; the model shades at most 8"),
+    "lights-type-unknown": (RENDER + ["--lights", "@LIGHTS:type"], 'unknown light type "LASER"'),
+    "lights-key-unknown": (RENDER + ["--lights", "@LIGHTS:key"], "POINT light has no key 'power'"),
+    "lights-key-other-type": (RENDER + ["--lights", "@LIGHTS:other-type"],
+                              "POINT light has no key 'spot_size'"),
+    "lights-energy-missing": (RENDER + ["--lights", "@LIGHTS:no-energy"], "energy is missing"),
+    "lights-vector-shape": (RENDER + ["--lights", "@LIGHTS:shape"],
+                            "location must be a list of 3 numbers"),
+    "lights-nonfinite": (RENDER + ["--lights", "@LIGHTS:nan"], "energy must be finite"),
+    "lights-negative": (RENDER + ["--lights", "@LIGHTS:negative"], "energy -5 out of range"),
+    "lights-area-zero": (RENDER + ["--lights", "@LIGHTS:area-zero"],
+                         "an AREA light needs a size above 0"),
+    "lights-shape-unknown": (RENDER + ["--lights", "@LIGHTS:area-shape"],
+                             'unknown shape "TRIANGLE"'),
+}
+LIGHTS_FILES = {
+    "not-json": '[{"type": "SUN",',
+    "not-list": '{"type": "SUN", "energy": 1}',
+    "too-many": "[" + ", ".join(['{"type": "POINT", "energy": 10}'] * 9) + "]",
+    "type": '[{"type": "LASER", "energy": 1}]',
+    "key": '[{"type": "POINT", "energy": 1, "power": 3}]',
+    "other-type": '[{"type": "POINT", "energy": 1, "spot_size": 0.5}]',
+    "no-energy": '[{"type": "SUN"}]',
+    "shape": '[{"type": "POINT", "energy": 1, "location": [1, 2]}]',
+    "nan": '[{"type": "POINT", "energy": NaN}]',
+    "negative": '[{"type": "POINT", "energy": -5}]',
+    "area-zero": '[{"type": "AREA", "energy": 5, "size": 0}]',
+    "area-shape": '[{"type": "AREA", "energy": 5, "shape": "TRIANGLE"}]',
 }
 OPERATOR_CASES = ("op-matrix-hdri", "op-bake-hdri", "op-convert-not-principled",
                   "op-convert-not-model", "op-convert-no-material", "op-comparison-running")
@@ -133,6 +167,12 @@ def _argv(case, tmp_path):
     for a in CLI_CASES[case][0]:
         if a.startswith("@BAD:"):
             a = str(images[a[5:]])
+        elif a.startswith("@LIGHTS:"):
+            lights = tmp_path / f"lights-{a[8:]}.json"
+            lights.write_text(LIGHTS_FILES[a[8:]])
+            a = str(lights)
+        elif a == "@NOFILE":
+            a = str(tmp_path / "no-such-lights.json")
         elif a.startswith("@RENDER:"):
             a = str(fake_render(tmp_path / f"render-{a[8:]}-{len(argv)}", a[8:]))
         argv.append(subs.get(a, a.replace("@FILE", str(blocker))))

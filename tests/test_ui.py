@@ -11,11 +11,12 @@ import bpy
 import pytest
 from mathutils import Vector
 
-from addon.blender import compat, convert, model_node
+from addon.blender import compat, convert, model_node, scene_lights
 
 
 # ----------------------------------------------------------------------------------------
 
+from addon.core.model import LIGHT_TYPE_CODES
 from addon.ui import operators, preferences, register, panels as ui
 
 
@@ -169,7 +170,14 @@ def test_new_material_follows_the_sun_and_world(addon):
         else:
             assert model_node.get_option(node, "ibl") == "split_sum"
         paths = {fc.data_path for fc in mat.node_tree.animation_data.drivers}
-        assert len(paths) == 3          # Sun Direction, Sun Irradiance, HDRI Strength
+        slot_paths = {p for p in paths if node.path_from_id() not in p or
+                      node.inputs[int(p.split("inputs[")[1].split("]")[0])].name
+                      .startswith("Light 1 ")}
+        # Sun Direction, Sun Irradiance, HDRI Strength; the startup file's Point light holds
+        # slot 1 (position, direction, colour, radius; and its shadow switch in OSL)
+        assert len(paths - slot_paths) == 3
+        assert len(slot_paths) == (5 if impl == "osl" else 4), sorted(slot_paths)
+        assert scene_lights.slot_type(node, 1) == LIGHT_TYPE_CODES["POINT"]
         sun.data.energy = 5.0
         sun.rotation_euler = (0.3, -0.4, 1.0)
         _evaluate(scene)
@@ -204,7 +212,7 @@ def test_add_menu_node_group_and_textures(addon):
         "ShaderNodeTexImage"
     group_nodes = len(node.node_tree.nodes)
     assert bpy.ops.ctlab.add_node_group() == {'FINISHED'}     # the group is reused, not rebuilt
-    assert len(bpy.data.node_groups) == 1 and len(node.node_tree.nodes) == group_nodes
+    assert len(bpy.data.node_groups) == 2 and len(node.node_tree.nodes) == group_nodes
     assert model_node.surface_input(node, "albedo").is_linked
 
 
@@ -324,7 +332,9 @@ def test_switch_implementation_and_view_on_all(addon):
     assert not model_node.surface_input(node, "normal").is_linked
     assert all(fc.data_path.startswith('nodes["Cook-Torrance"]')
                for fc in mat.node_tree.animation_data.drivers)
-    assert len(mat.node_tree.animation_data.drivers) == 7      # 3 + 3 + strength, no stale ones
+    # the Sun 3 + 3, the strength, the Point light (slot 1): position, direction, colour 3 each,
+    # radius; no stale ones
+    assert len(mat.node_tree.animation_data.drivers) == 17
 
     scene.render.engine = 'CYCLES'
     scene.cycles.shading_system = False

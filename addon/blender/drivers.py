@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.model import BY_KEY
+from ..core.model import BY_KEY, light_key
 
 SUN_DIRECTION = BY_KEY["sun_to_light"].label
 SUN_IRRADIANCE = BY_KEY["sun_irradiance"].label
@@ -35,7 +35,7 @@ def _driver(tree, path, index, expression, variables):
     for name, id_type, ident, data_path in variables:
         var = drv.variables.new()
         var.name = name
-        if id_type == 'TRANSFORMS':              # data_path: ROT_W, ROT_X, ...
+        if id_type == 'TRANSFORMS':              # data_path: ROT_W, LOC_X, SCALE_X, ...
             var.type = 'TRANSFORMS'
             target = var.targets[0]
             target.id = ident
@@ -102,4 +102,55 @@ def add_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, sun: bpy.types.O
         _driver(tree, _input_path(node, HDRI_ROTATION), None, "r",
                 [("r", 'WORLD', world, f'node_tree.nodes["{mapping.name}"].inputs[2].default_value[2]')])
         count += 1
+    return count
+
+
+# The rotation's columns from the world-space quaternion (w, x, y, z): X, Y and -Z.
+_X_AXIS = ("1 - 2 * (y * y + z * z)", "2 * (x * y + w * z)", "2 * (x * z - w * y)")
+_Y_AXIS = ("2 * (x * y - w * z)", "1 - 2 * (x * x + z * z)", "2 * (y * z + w * x)")
+_MINUS_Z_AXIS = ("-2 * (x * z + w * y)", "-2 * (y * z - w * x)", "2 * (x * x + y * y) - 1")
+
+
+def add_light_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, slot: int,
+                      obj: bpy.types.Object) -> int:
+    """Drive light slot ``slot``'s inputs from a light object, as core.lights.slot_values
+    computes them from a light's properties: its world position, -Z axis, power
+    (energy x colour x 2^exposure), radius or angle, spot cone, an Area light's half extents
+    (size x world scale along X and Y) and its Cast Shadow. The slot's Type is not a driver:
+    light_sync sets it (and rebuilds these drivers) when the light's type or shape changes.
+    Returns how many drivers were added."""
+    names = {s.name for s in node.inputs}
+    light = obj.data
+    count = 0
+
+    def drive(field, index, expression, variables):
+        nonlocal count
+        name = BY_KEY[light_key(slot, field)].label
+        if name in names:
+            _driver(tree, _input_path(node, name), index, expression, variables)
+            count += 1
+
+    quat = [(c, 'TRANSFORMS', obj, f"ROT_{c.upper()}") for c in "wxyz"]
+    for i, c in enumerate("XYZ"):
+        drive("position", i, "p", [("p", 'TRANSFORMS', obj, f"LOC_{c}")])
+        drive("direction", i, _MINUS_Z_AXIS[i], quat)
+        drive("color", i, "e * c * pow(2, x)",
+              [("e", 'LIGHT', light, "energy"), ("c", 'LIGHT', light, f"color[{i}]"),
+               ("x", 'LIGHT', light, "exposure")])
+    if light.type == 'AREA':
+        rect = light.shape in ('RECTANGLE', 'ELLIPSE')
+        for i in range(3):
+            drive("axis_x", i, f"({_X_AXIS[i]}) * 0.5 * s * k",
+                  quat + [("s", 'LIGHT', light, "size"), ("k", 'TRANSFORMS', obj, "SCALE_X")])
+            drive("axis_y", i, f"({_Y_AXIS[i]}) * 0.5 * s * k",
+                  quat + [("s", 'LIGHT', light, "size_y" if rect else "size"),
+                          ("k", 'TRANSFORMS', obj, "SCALE_Y")])
+    elif light.type == 'SUN':
+        drive("size", None, "a", [("a", 'LIGHT', light, "angle")])
+    else:
+        drive("size", None, "r", [("r", 'LIGHT', light, "shadow_soft_size")])
+    if light.type == 'SPOT':
+        drive("spot_size", None, "s", [("s", 'LIGHT', light, "spot_size")])
+        drive("spot_blend", None, "b", [("b", 'LIGHT', light, "spot_blend")])
+    drive("shadow", None, "s", [("s", 'LIGHT', light, "use_shadow")])
     return count

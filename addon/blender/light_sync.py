@@ -1,8 +1,10 @@
-"""The model's materials follow the scene: the key Sun and the world's strength and rotation
-through drivers (blender/drivers.py), the world's HDRI through a depsgraph handler (a driver
-cannot set a file): when the world, its Environment Texture image or the key Sun changes,
-every user material that uses the model is pointed at the HDRI (or, for a world without an
-image, a small uniform image of its colour) and at the files derived from it.
+"""The model's materials follow the scene: the key Sun, the other lights (blender/scene_lights.py)
+and the world's strength and rotation through drivers (blender/drivers.py), the world's HDRI
+and which light holds which slot through a depsgraph handler (a driver cannot set a file or
+choose a light): when the world, its Environment Texture image, the key Sun or the set of lights
+(added, removed, hidden from render, a type or shape changed) changes, every user material that
+uses the model is synced again, and pointed at the HDRI (or, for a world without an image, a
+small uniform image of its colour) and at the files derived from it.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from pathlib import Path
 
 import bpy
 
-from . import model_node
+from . import model_node, scene_lights
 from .drivers import world_nodes
 from ..core import env_importance, ibl_bake
 from ..core.errors import UserError
@@ -117,6 +119,8 @@ def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=T
     model_node.add_drivers(tree, node, sun, scene.world)
     if sun is None:                    # no Sun: no key light
         node.inputs[BY_KEY["sun_irradiance"].label].default_value = (0.0, 0.0, 0.0, 1.0)
+    used, _unused = scene_lights.scene_lights(scene, exclude=sun)
+    scene_lights.sync_slots(tree, node, used)
     if environment:
         update_environment(node, scene, env)
 
@@ -130,8 +134,10 @@ def user_materials():
 def _state(scene) -> tuple:
     world = scene.world
     sun = key_sun(scene)
+    used, unused = scene_lights.scene_lights(scene, exclude=sun)
     return (world.name if world else "", world_hdri_path(scene),
-            _world_colour(world) if world else (), sun.name if sun else "")
+            _world_colour(world) if world else (), sun.name if sun else "",
+            scene_lights.state(used), len(unused))
 
 
 _seen: dict = {}               # scene name -> the state last synced

@@ -16,8 +16,8 @@ import bpy
 
 from . import drivers, node_group, osl_shader
 from ..core.errors import UserError
-from ..core.model import (BAKED_IBL_MODES, BY_KEY, LIGHTING, OPTIONS, OPTION_VALUES, SURFACE,
-                          Lighting, ModelOptions)
+from ..core.model import (BAKED_IBL_MODES, BY_KEY, LIGHT_FIELDS, LIGHT_SLOTS, LIGHTING,
+                          OPTIONS, OPTION_VALUES, SURFACE, Lighting, ModelOptions, light_key)
 
 IMPLEMENTATIONS = ("osl", "nodes")
 IMPLEMENTATION_LABELS = {"osl": "OSL Shader", "nodes": "Node Group"}
@@ -149,7 +149,7 @@ def set_options(node: bpy.types.Node, options: ModelOptions) -> None:
     for key in OPTION_KEYS:
         set_option(node, key, getattr(options, key))
     if implementation(node) == "osl":
-        for key in ("env_samples", "env_visibility", "sun_shadow", "seed"):
+        for key in ("env_samples", "env_visibility", "sun_shadow", "shadow_rays", "seed"):
             _input(node, key).default_value = getattr(options, key)
 
 
@@ -161,7 +161,33 @@ def set_lighting(node: bpy.types.Node, lighting: Lighting) -> None:
         value = getattr(lighting, i.key)
         _input(node, i.key).default_value = tuple(value) + (1.0,) if i.kind == "RGBA" \
             else value
+    set_lights(node, lighting.lights)
     set_environment(node, lighting.hdri, lighting.env_tables, lighting.ibl_bake)
+
+
+def set_light_slot(node: bpy.types.Node, slot: int, values: dict | None) -> None:
+    """Light slot ``slot`` (1-based) from core.lights.slot_values, or empty for None. The node
+    group has no shadow switch (it cannot trace)."""
+    for f in LIGHT_FIELDS:
+        i = BY_KEY[light_key(slot, f)]
+        value = i.default if values is None else values[f]
+        if implementation(node) != "osl" and not i.group:
+            continue
+        if i.kind == "RGBA" and len(value) == 3:
+            value = tuple(value) + (1.0,)
+        _input(node, i.key).default_value = value
+
+
+def set_lights(node: bpy.types.Node, lights) -> None:
+    """The slots from a list of core.lights.Light (at most LIGHT_SLOTS, in slot order); the
+    slots after them are emptied."""
+    from ..core.lights import slot_values
+    lights = list(lights)
+    if len(lights) > LIGHT_SLOTS:
+        raise UserError(f"{len(lights)} lights; the model shades at most {LIGHT_SLOTS}")
+    for slot in range(1, LIGHT_SLOTS + 1):
+        light = lights[slot - 1] if slot <= len(lights) else None
+        set_light_slot(node, slot, slot_values(light) if light else None)
 
 
 def set_environment(node: bpy.types.Node, hdri, tables: dict | None = None,

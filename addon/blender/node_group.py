@@ -18,7 +18,7 @@ import bpy
 from ..core.errors import UserError
 from ..core.files import NODE_GROUPS_DIR
 from ..core.ibl_bake import DFG_SIZE, LEVEL_COUNT
-from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, VIEWS
+from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, LIGHT_SLOTS, VIEWS
 
 DESCRIPTION = NODE_GROUPS_DIR / "cook_torrance.toml"
 TAG = "ctlab_node_group"
@@ -39,6 +39,9 @@ def load_description(path: Path = DESCRIPTION) -> dict:
         data = tomllib.load(f)
     if list(data["views"]) != list(VIEWS):
         raise UserError(f"{path}: the views must be, in order: {', '.join(VIEWS)}")
+    if data["lights"]["slots"] != LIGHT_SLOTS:
+        raise UserError(f"{path}: it is written for {data['lights']['slots']} light slots; the "
+                        f"model has {LIGHT_SLOTS}")
     if data["group"]["dfg_size"] != DFG_SIZE:
         raise UserError(f"{path}: its DFG lookups are written for {data['group']['dfg_size']}"
                         f"-texel tables; ibl_bake makes {DFG_SIZE}")
@@ -88,17 +91,169 @@ def parse(text: str):
     return tree
 
 
+# --- The lights: per-light frames and all_lights() (the description's [lights]) -----------
+#
+# The per-light frames are built once, into a group of their own ("<group> Light"), whose
+# inputs are the light's fields and the quantities of the other frames those frames use, and
+# whose outputs are the per-light nodes the rest of the description uses. The main group holds
+# one instance of it for the key Sun and one for each slot (Cycles and EEVEE flatten groups
+# when they compile, so this costs nothing when rendering; building 9 copies of the frames
+# into one tree would take Blender seconds, since adding a node costs time in proportion to
+# the nodes already in the tree).
+
+LIGHT_GROUP = "ctlab_light_group"       # tags the per-light group
+
+
+def _per_light_names(data: dict) -> set:
+    return {name for spec in data["frames"].values() if spec.get("per_light")
+            for name in spec["nodes"]}
+
+
+def _refs(tree, found: set) -> set:
+    if tree[0] == "ref":
+        found.add(tree[1])
+    elif tree[0] == "call":
+        for a in tree[2]:
+            _refs(a, found)
+    return found
+
+
+def _all_lights(tree, per_light: set, slots: int):
+    """``all_lights(x)``, the sum of the per-light node x over the key Sun and every slot, as
+    vec.ADD of the lights' instances (x, x_1, ...)."""
+    if tree[0] != "call":
+        return tree
+    _, op, args = tree
+    if op == "all_lights":
+        if len(args) != 1 or args[0][0] != "ref" or args[0][1] not in per_light:
+            raise UserError("node description: all_lights() takes the name of a per-light node")
+        name = args[0][1]
+        total = ("ref", name)
+        for i in range(1, slots + 1):
+            total = ("call", "vec.ADD", [total, ("ref", f"{name}_{i}")])
+        return total
+    return ("call", op, [_all_lights(a, per_light, slots) for a in args])
+
+
+def _kind(tree, exprs: dict, inputs: dict) -> str:
+    """FLOAT or VECTOR: what an expression gives (colours are vectors here). ``inputs``:
+    group input name -> kind."""
+    kind = tree[0]
+    if kind == "num":
+        return "FLOAT"
+    if kind == "ref":
+        name = tree[1]
+        if name.startswith("in."):
+            return inputs[name[3:]]
+        if name.startswith("geo."):
+            return "VECTOR"
+        return _kind(exprs[name][1], exprs, inputs)
+    _, op, args = tree
+    if op.startswith("math.") or op in ("x", "y", "z", "pick"):
+        return "FLOAT"
+    if op.startswith("vec."):
+        return "FLOAT" if op[4:] in VECTOR_VALUE_OPS else "VECTOR"
+    if op == "gated":
+        return _kind(args[1], exprs, inputs)
+    return "VECTOR"
+
+
+def _input_kinds() -> dict:
+    return {i.group: ("FLOAT" if i.kind in ("FLOAT", "INT") else "VECTOR")
+            for i in GROUP_INPUTS}
+
+
+class LightPlan:
+    """The description split for the per-light group: its inputs (the light's fields, then the
+    other frames' quantities it uses), its node expressions and its outputs (the per-light
+    nodes used elsewhere; a closure term's arguments as ``name.0``, ``name.1``...)."""
+
+    def __init__(self, data: dict):
+        self.slots = data["lights"]["slots"]
+        self.key_sun = {field: parse(text) for field, text in data["lights"]["key"].items()}
+        self.fields = list(self.key_sun)
+        per_light = self.per_light = _per_light_names(data)
+        main, sub = {}, {}
+        for frame, spec in data["frames"].items():
+            for name, text in spec["nodes"].items():
+                tree = _all_lights(parse(text), per_light, self.slots)
+                (sub if spec.get("per_light") else main)[name] = (frame, tree)
+        self.views = {view: _all_lights(parse(text), per_light, self.slots)
+                      for view, text in data["views"].items()}
+        used_outside = set()
+        for _, tree in list(main.values()) + [(None, t) for t in self.views.values()]:
+            used_outside |= _refs(tree, set())
+        globals_used = []
+        self.exprs = {}                    # the per-light group's nodes
+        for name, (frame, tree) in sub.items():
+            for ref in _refs(tree, set()):
+                if ref.startswith("light."):
+                    if ref[6:] not in self.key_sun:
+                        raise UserError(f"node description: the key Sun has no {ref[6:]!r}")
+                elif ref in main and ref not in globals_used:
+                    globals_used.append(ref)
+            self.exprs[name] = (frame, self._localise(tree, main))
+        kinds = _input_kinds()
+        field_kinds = {f: kinds[f"Light 1 {f}"] for f in self.fields}
+        self.globals = globals_used
+        self.inputs = [(f, field_kinds[f]) for f in self.fields] + \
+            [(g, _kind(main[g][1], main, kinds)) for g in globals_used]
+        self.outputs = []
+        self.closures = {}                 # per-light closure term -> (op, argument count)
+        sub_kinds = dict(self.inputs)
+        for name in sub:
+            if name not in used_outside:
+                continue
+            frame, tree = self.exprs[name]
+            if tree[0] == "call" and tree[1] in CLOSURE_OPS:
+                self.closures[name] = (tree[1], len(tree[2]))
+                for k, arg in enumerate(tree[2]):
+                    self.exprs[f"{name}.{k}"] = (frame, arg)
+                    self.outputs.append((f"{name}.{k}", _kind(arg, self.exprs, sub_kinds)))
+            else:
+                self.outputs.append((name, _kind(tree, self.exprs, sub_kinds)))
+        self.main = main
+
+    def _localise(self, tree, main):
+        """A per-light expression inside the per-light group: the light's fields and the other
+        frames' quantities become its inputs."""
+        if tree[0] == "ref":
+            name = tree[1]
+            if name.startswith("light."):
+                return ("ref", "in." + name[6:])
+            return ("ref", "in." + name) if name in main else tree
+        if tree[0] == "call":
+            return ("call", tree[1], [self._localise(a, main) for a in tree[2]])
+        return tree
+
+    def main_exprs(self) -> dict:
+        """The main group's nodes: its own, and each per-light output for each light as
+        ("light", suffix, output) (a closure term as its op over such outputs)."""
+        exprs = dict(self.main)
+        for suffix in [""] + [f"_{i}" for i in range(1, self.slots + 1)]:
+            for name, _kind_ in self.outputs:
+                if "." not in name:
+                    exprs[name + suffix] = ("lights", ("light", suffix, name))
+            for name, (op, count) in self.closures.items():
+                exprs[name + suffix] = ("lights", ("call", op, [
+                    ("light", suffix, f"{name}.{k}") for k in range(count)]))
+        return exprs
+
+
 # --- Building ----------------------------------------------------------------------------
 
 class _Builder:
-    def __init__(self, tree: bpy.types.ShaderNodeTree, data: dict):
+    def __init__(self, tree: bpy.types.ShaderNodeTree, data: dict, exprs: dict,
+                 lights: "LightPlan | None" = None, light_group=None):
         self.tree = tree
         self.nodes = tree.nodes
         self.data = data
-        self.exprs = {}                     # node name -> (frame, parsed expression)
-        for frame, spec in data["frames"].items():
-            for name, text in spec["nodes"].items():
-                self.exprs[name] = (frame, parse(text))
+        self.exprs = exprs                  # node name -> (frame, parsed expression)
+        self.frame_labels = {key: spec["label"] for key, spec in data["frames"].items()}
+        self.frame_labels["lights"] = ("The lights: the key Sun and each slot, each an "
+                                       "instance of the per-light group")
+        self.lights, self.light_group = lights, light_group
+        self.light_nodes = {}               # suffix -> the per-light group's instance
         self.built = {}                     # (node name, mode or None) -> output socket
         self.frames = {}
         self.current_frame = None
@@ -144,7 +299,7 @@ class _Builder:
         if key not in self.frames:
             f = self.nodes.new("NodeFrame")
             f.name = f"frame_{key}"
-            f.label = self.data["frames"][key]["label"] if key in self.data["frames"] else key
+            f.label = self.frame_labels.get(key, key)
             f.label_size = 14
             self.frames[key] = f
         return self.frames[key]
@@ -202,6 +357,8 @@ class _Builder:
         kind = tree[0]
         if kind == "num":
             return tree[1]
+        if kind == "light":
+            return self.light_node(tree[1]).outputs[tree[2]]
         if kind == "ref":
             return self.socket(tree[1])
         _, op, args = tree
@@ -268,6 +425,26 @@ class _Builder:
                 total = term if total is None else self.call("vec.ADD", [total, term])
             return self.call("vec.MULTIPLY", [total, factor])
         raise UserError(f"node description: unknown operation {op!r}")
+
+    def light_node(self, suffix: str):
+        """The per-light group's instance for the key Sun ("") or slot i ("_i"), its inputs
+        fed from the key Sun's expressions or the slot's group inputs, and this group's
+        quantities."""
+        if suffix not in self.light_nodes:
+            saved, self.current_frame = self.current_frame, "lights"
+            node = self.new("ShaderNodeGroup")
+            node.node_tree = self.light_group
+            node.label = f"Light {suffix[1:]}" if suffix else "Key Sun"
+            node.width = 180
+            self.light_nodes[suffix] = node
+            for name in self.lights.fields:
+                source = self.lights.key_sun[name] if not suffix else \
+                    ("ref", f"in.Light {suffix[1:]} {name}")
+                self.link(self.value(source), node.inputs[name])
+            for name in self.lights.globals:
+                self.link(self.socket(name), node.inputs[name])
+            self.current_frame = saved
+        return self.light_nodes[suffix]
 
     def dimension(self, key, dim):
         """A Value node that set_bake sets to a baked file's width or height."""
@@ -339,10 +516,13 @@ class _Builder:
 
 def _interface(group):
     """The group's sockets: the model's interface (core.model), in its order."""
-    group.interface.clear()
+    panel = None
     for i in GROUP_INPUTS:
+        if i.key.startswith("light") and panel is None:
+            # the light slots, in a panel the artist opens when needed (drivers fill them)
+            panel = group.interface.new_panel("Lights", default_closed=True)
         sock = group.interface.new_socket(i.group, in_out='INPUT',
-                                          socket_type=SOCKET_TYPES[i.kind])
+                                          socket_type=SOCKET_TYPES[i.kind], parent=panel)
         sock.description = i.tooltip
         if i.kind in ("FLOAT", "INT"):
             cast = int if i.kind == "INT" else float
@@ -356,24 +536,51 @@ def _interface(group):
         group.interface.new_socket(name, in_out='OUTPUT', socket_type=SOCKET_TYPES[kind])
 
 
-def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
-    """The node group, built anew from node_groups/cook_torrance.toml (an existing group of
-    the same name made by this add-on is rebuilt in place, so materials keep using it)."""
-    data = load_description()
-    name = name or data["group"]["name"]
+def _tree(name: str, tag: str) -> bpy.types.ShaderNodeTree:
+    """The shader node tree of that name made by this add-on, emptied, or a new one."""
     group = bpy.data.node_groups.get(name)
     if group is None or group.bl_idname != "ShaderNodeTree":
         group = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    group[TAG] = True
-    group.description = data["group"]["description"]
+    group[tag] = True
     group.nodes.clear()
+    group.interface.clear()
+    return group
+
+
+def build_light_group(data: dict, plan: LightPlan, name: str) -> bpy.types.ShaderNodeTree:
+    """The per-light group: the per_light frames once, over the plan's inputs and outputs."""
+    group = _tree(name, LIGHT_GROUP)
+    group.description = "One light of the Cook-Torrance Lab group (node_groups/cook_torrance.toml)"
+    for label, kind in plan.inputs:
+        group.interface.new_socket(label, in_out='INPUT', socket_type=SOCKET_TYPES[kind])
+    for label, kind in plan.outputs:
+        group.interface.new_socket(label, in_out='OUTPUT', socket_type=SOCKET_TYPES[kind])
+    b = _Builder(group, data, plan.exprs)
+    b.group_in.location = (-600, 0)
+    out = group.nodes.new("NodeGroupOutput")
+    out.location = (2800, 0)
+    for label, _ in plan.outputs:
+        b.link(b.socket(label), out.inputs[label])
+    return group
+
+
+def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
+    """The node group, built anew from node_groups/cook_torrance.toml (an existing group of
+    the same name made by this add-on is rebuilt in place, so materials keep using it), with
+    its per-light group ("<name> Light")."""
+    data = load_description()
+    name = name or data["group"]["name"]
+    plan = LightPlan(data)
+    light_group = build_light_group(data, plan, f"{name} Light")
+    group = _tree(name, TAG)
+    group.description = data["group"]["description"]
     _interface(group)
-    b = _Builder(group, data)
+    b = _Builder(group, data, plan.main_exprs(), plan, light_group)
     b.group_in.location = (-600, 0)
     b.current_frame = "views"
     b.frames["views"] = b.frame("views")
     b.frames["views"].label = "View (term isolation) and the output"
-    views = {view: parse(text) for view, text in data["views"].items()}
+    views = plan.views
     view_on = [b.call("math.COMPARE", [b.socket("in.View"), float(k), 0.5])
                for k in range(len(views))]
 

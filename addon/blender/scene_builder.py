@@ -16,7 +16,7 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
-from . import compat, materials, model_node
+from . import compat, materials, model_node, scene_lights
 from .paths import resolve_hdri
 from ..core import env_importance, ibl_bake
 from ..core.hdri import load_hdri
@@ -105,14 +105,23 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
 
     scene.world = build_world(s, load_image(hdri))
 
-    sun_data = bpy.data.lights.new("Cook-Torrance Lab Sun", 'SUN')
-    sun_data.energy = s.sun_strength
-    sun_data.color = s.sun_color
-    sun_data.angle = 0.0                          # a delta light, as the model's key light
-    sun = _tagged(bpy.data.objects.new("Cook-Torrance Lab Sun", sun_data))
-    sun.rotation_mode = 'QUATERNION'
-    sun.rotation_quaternion = Vector(s.to_light()).to_track_quat('Z', 'Y')  # +Z toward it
-    coll.objects.link(sun)
+    # The key light: a delta Sun; or, with a lights list, those lights in its place.
+    sun, light_objects = None, []
+    if s.lights:
+        for i, light in enumerate(s.lights):
+            obj = _tagged(scene_lights.new_light_object(
+                light, light.name or f"Cook-Torrance Lab Light {i + 1}"))
+            coll.objects.link(obj)
+            light_objects.append(obj)
+    else:
+        sun_data = bpy.data.lights.new("Cook-Torrance Lab Sun", 'SUN')
+        sun_data.energy = s.sun_strength
+        sun_data.color = s.sun_color
+        sun_data.angle = 0.0                      # a delta light, as the model's key light
+        sun = _tagged(bpy.data.objects.new("Cook-Torrance Lab Sun", sun_data))
+        sun.rotation_mode = 'QUATERNION'
+        sun.rotation_quaternion = Vector(s.to_light()).to_track_quat('Z', 'Y')  # +Z toward it
+        coll.objects.link(sun)
 
     cam_data = bpy.data.cameras.new("Cook-Torrance Lab Camera")
     cam_data.type = 'ORTHO'
@@ -127,16 +136,19 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
     scene.render.resolution_percentage = 100
     scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
 
-    lighting = Lighting(s.to_light(), s.irradiance(), str(hdri), s.hdri_strength,
-                        math.radians(s.hdri_rotation), tables, str(bake))
+    lighting = Lighting(s.to_light(), s.irradiance() if sun else (0.0, 0.0, 0.0), str(hdri),
+                        s.hdri_strength, math.radians(s.hdri_rotation), tables, str(bake))
     if s.shader == "principled":
         mat = materials.principled_material("Principled Matrix", per_object=True,
                                             distribution=s.principled_distribution)
     else:
-        mat = materials.model_material("Cook-Torrance Matrix", s.shader, s.model, lighting,
-                                       per_object=True)
-        # the key light and the world inputs follow the Sun object and the world's nodes
-        model_node.add_drivers(mat.node_tree, model_node.find(mat), sun, scene.world)
+        # shadow rays stop at the other spheres only where Principled's would
+        mat = materials.model_material("Cook-Torrance Matrix", s.shader, s.model_options(),
+                                       lighting, per_object=True)
+        # the key light, the lights and the world inputs follow the scene's objects
+        node = model_node.find(mat)
+        model_node.add_drivers(mat.node_tree, node, sun, scene.world)
+        scene_lights.sync_slots(mat.node_tree, node, light_objects)
     mat[TAG] = True
 
     mesh = bpy.data.meshes.new("Cook-Torrance Lab Sphere")

@@ -110,6 +110,53 @@ LIGHTING = (
           group="HDRI Rotation", min=-1000.0, max=1000.0),
 )
 
+# --- The scene's lights (docs/model.md "Lights"): LIGHT_SLOTS slots, each a Blender light in
+# world space, kept in step by drivers and the sync handler (blender/light_sync.py) or set from
+# a --lights file (core/lights.py). The key Sun above stays a light of its own.
+LIGHT_SLOTS = 8
+# The Type input: 0 an empty slot, else one of these (an Area light's shape picks 4 or 5).
+LIGHT_TYPE_CODES = {"SUN": 1, "POINT": 2, "SPOT": 3, "AREA_RECTANGLE": 4, "AREA_ELLIPSE": 5}
+
+
+def _light_inputs(slot: int) -> tuple:
+    """The inputs of light slot ``slot`` (1 .. LIGHT_SLOTS): OSL ``light<slot>_<field>``,
+    group socket "Light <slot> <Label>" (the shadow switch is OSL's only)."""
+    types = ", ".join(f"{v} {k.title().replace('_', ' ')}" for k, v in LIGHT_TYPE_CODES.items())
+    fields = (
+        ("type", "Type", "INT", 0, f"0 empty, {types}", 0, 5),
+        ("position", "Position", "VECTOR", (0.0, 0.0, 0.0), "World location (m)", -1e6, 1e6),
+        ("direction", "Direction", "VECTOR", (0.0, 0.0, -1.0),
+         "World direction the light shines: its object's -Z axis", -1.0, 1.0),
+        ("axis_x", "Axis X", "VECTOR", (0.0, 0.0, 0.0),
+         "Area: half its size along its X axis, world space (m)", -1e6, 1e6),
+        ("axis_y", "Axis Y", "VECTOR", (0.0, 0.0, 0.0),
+         "Area: half its size along its Y axis, world space (m)", -1e6, 1e6),
+        ("color", "Color", "RGBA", (0.0, 0.0, 0.0, 1.0),
+         "Colour x power x 2^exposure (W; a Sun's strength in W/m^2)", 0.0, 1e9),
+        ("size", "Size", "FLOAT", 0.0,
+         "Point and Spot: radius (m); Sun: angular diameter (radians)", 0.0, 1e6),
+        ("spot_size", "Spot Size", "FLOAT", 3.141592653589793,
+         "Spot: the cone's full angle (radians)", 0.0, 3.141592653589793),
+        ("spot_blend", "Spot Blend", "FLOAT", 0.0, "Spot: the soft edge's blend", 0.0, 1.0),
+    )
+    inputs = tuple(Input(f"light{slot}_{key}", f"Light {slot} {label}", kind, default, tip,
+                         osl=f"light{slot}_{key}", group=f"Light {slot} {label}", min=lo,
+                         max=hi)
+                   for key, label, kind, default, tip, lo, hi in fields)
+    return inputs + (Input(f"light{slot}_shadow", f"Light {slot} Shadow", "INT", 1,
+                           "Trace the light's shadow (its Cast Shadow)",
+                           osl=f"light{slot}_shadow"),)
+
+
+LIGHTS = tuple(i for slot in range(1, LIGHT_SLOTS + 1) for i in _light_inputs(slot))
+LIGHT_FIELDS = tuple(i.key.split("_", 1)[1] for i in _light_inputs(1))
+
+
+def light_key(slot: int, field: str) -> str:
+    """The input key of ``field`` in light slot ``slot`` (1-based)."""
+    return f"light{slot}_{field}"
+
+
 # What only the OSL shader has: files (a node cannot be given a file by a driver), the
 # reference integrator's settings, and how this Blender's texture() counts rows.
 OSL_ONLY = (
@@ -129,6 +176,9 @@ OSL_ONLY = (
           min=1, max=1024),
     Input("env_visibility", "Env Visibility", "INT", 0,
           "Trace environment samples for occlusion", osl="env_visibility"),
+    Input("shadow_rays", "Shadow Rays", "INT", 1,
+          "Trace shadow rays (0: none, for convex objects that do not shadow each other: the "
+          "matrix when its spheres' mutual shadows are off)", osl="shadow_rays"),
     Input("seed", "Seed", "INT", 0, "The render's seed (Cycles' range)", osl="seed",
           min=0, max=2 ** 31 - 1),
     Input("tex_bottom_up", "Texture Rows Bottom-Up", "INT", 0,
@@ -136,7 +186,7 @@ OSL_ONLY = (
           osl="tex_bottom_up"),
 )
 
-INPUTS = SURFACE + OPTIONS + LIGHTING + OSL_ONLY
+INPUTS = SURFACE + OPTIONS + LIGHTING + LIGHTS + OSL_ONLY
 GROUP_INPUTS = tuple(i for i in INPUTS if i.group)      # the node group's sockets, in order
 OSL_INPUTS = tuple(i for i in INPUTS if i.osl)           # the OSL shader's parameters
 BY_KEY = {i.key: i for i in INPUTS}
@@ -170,7 +220,7 @@ class ModelOptions:
 
     def __init__(self, view="full", g_model=G_MODELS[0], diffuse_model=DIFFUSE_MODELS[0],
                  units=UNITS[0], ibl=IBL_MODES[0], env_samples=4, env_visibility=False,
-                 sun_shadow=True, seed=0):
+                 sun_shadow=True, shadow_rays=True, seed=0):
         self.view = view
         self.g_model = g_model
         self.diffuse_model = diffuse_model
@@ -179,6 +229,7 @@ class ModelOptions:
         self.env_samples = int(env_samples)
         self.env_visibility = bool(env_visibility)
         self.sun_shadow = bool(sun_shadow)
+        self.shadow_rays = bool(shadow_rays)
         self.seed = int(seed)
         self.validate()
 
@@ -211,3 +262,4 @@ class Lighting:
     hdri_rotation: float = 0.0              # radians, as the Mapping node's Z
     env_tables: dict = field(default_factory=dict)
     ibl_bake: str = ""
+    lights: tuple = ()                      # core.lights.Light, in slot order

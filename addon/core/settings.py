@@ -11,7 +11,8 @@ import math
 from dataclasses import dataclass, field
 
 from .errors import UserError
-from .model import BAKED_IBL_MODES, DEFAULT_ALBEDO, ModelOptions
+from .lights import PER_TYPE
+from .model import BAKED_IBL_MODES, DEFAULT_ALBEDO, LIGHT_SLOTS, ModelOptions
 
 SHADERS = ("osl", "nodes", "principled")     # the OSL shader, the node group, the reference
 MAX_GRID = 16
@@ -77,6 +78,9 @@ class MatrixSettings:
     # Spheres shadow each other (the Sun's and, in a path tracer, the world's light); off,
     # each sphere is lit by the unoccluded world, as the model's integrator assumes.
     mutual_shadows: bool = True
+    # Scene lights (core.lights.Light, at most LIGHT_SLOTS) in place of the key Sun
+    lights: tuple = ()
+    lights_file: str = ""               # where they were read from (for scene.json)
 
     def __post_init__(self):
         self.validate()                 # settings are checked once, when made
@@ -85,6 +89,12 @@ class MatrixSettings:
         """(row, col, metallic, smoothness) of every sphere."""
         for row, col, metal, smooth in matrix_values(self.rows, self.cols):
             yield row, col, (metal if self.metallic is None else self.metallic), smooth
+
+    def model_options(self, **changes) -> ModelOptions:
+        """The model's options for this scene: it traces shadow rays exactly when the spheres
+        shadow each other (as Principled's do; being convex, none shadows itself)."""
+        return ModelOptions(**dict(vars(self.model), shadow_rays=self.mutual_shadows,
+                                   **changes))
 
     def to_light(self) -> tuple:
         return normalized(self.sun_to_light)
@@ -127,6 +137,8 @@ class MatrixSettings:
             raise UserError(f"metallic {self.metallic} out of range; use 0 to 1")
         if len(self.albedo) != 3 or not all(0.0 <= a <= 1.0 for a in self.albedo):
             raise UserError(f"albedo {self.albedo} out of range; use three values in [0, 1]")
+        if len(self.lights) > LIGHT_SLOTS:
+            raise UserError(f"{len(self.lights)} lights; the model shades at most {LIGHT_SLOTS}")
         self.model.validate()
 
 
@@ -162,8 +174,21 @@ def describe(s: MatrixSettings, hdri: str) -> dict:
                       "albedo": list(s.albedo), "center_px": [cx, cy],
                       "radius_px": s.radius * px_per_m})
     return {"width": s.width, "height": s.height, "to_camera": list(TO_CAMERA),
-            "sun": {"to_light": list(s.to_light()), "irradiance": list(s.irradiance())},
+            "sun": {"to_light": list(s.to_light()),
+                    "irradiance": [0.0] * 3 if s.lights else list(s.irradiance())},
+            "lights": [light_record(light) for light in s.lights],
+            "lights_file": s.lights_file,
             "hdri": str(hdri), "hdri_strength": s.hdri_strength,
             "hdri_rotation_deg": s.hdri_rotation, "shader": s.shader,
             "principled_distribution": s.principled_distribution,
             "rows": s.rows, "cols": s.cols, "model": s.model.as_dict(), "cells": cells}
+
+
+def light_record(light) -> dict:
+    """A light as scene.json records it (Blender's property names, as a --lights file)."""
+    record = {"type": light.type, "name": light.name, "location": list(light.location),
+              "rotation_euler": list(light.rotation_euler), "scale": list(light.scale),
+              "color": list(light.color), "energy": light.energy, "exposure": light.exposure,
+              "use_shadow": light.use_shadow}
+    record.update({k: light.get(k) for k in PER_TYPE[light.type]})
+    return record

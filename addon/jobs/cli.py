@@ -154,6 +154,9 @@ SCENE_ARGS = (
     Arg("--sun-dir", "sun_dir", "X,Y,Z toward the Sun", str,
         ",".join(map(str, MatrixSettings.sun_to_light))),
     Arg("--sun-strength", "sun_strength", "Sun irradiance (W/m^2)", float, 1.0),
+    Arg("--lights", "lights", "FILE.json: a list of Blender lights (type, location, "
+        "rotation_euler, color, energy, ...) in place of the key Sun; Principled is rendered "
+        "under the same lights (docs/model.md \"Lights\")", str, ""),
     Arg("--albedo", "albedo", "R,G,B linear albedo (default: gold)", str,
         ",".join(map(str, MATRIX_ALBEDO))),
     Arg("--ibl", "ibl", "indirect light: " + "|".join(IBL_MODES) + " (default: reference; "
@@ -224,8 +227,18 @@ def settings_from(args, shader: str, view: str) -> MatrixSettings:
                        sun_strength=args.sun_strength,
                        albedo=parse_vector(args.albedo, 3, "albedo"), shader=shader,
                        principled_distribution=args.principled_distribution,
-                       width=args.size, height=args.size, model=model)
+                       width=args.size, height=args.size, model=model,
+                       **lights_from(args))
     return s
+
+
+def lights_from(args) -> dict:
+    """The --lights file's lights, read and checked (one clear line for a bad file)."""
+    if not args.lights:
+        return {}
+    from ..core.lights import read_lights
+    path = check_path(args.lights, "--lights")
+    return {"lights": tuple(read_lights(path)), "lights_file": str(path)}
 
 
 # ---------------------------------------------------------------------------------------
@@ -292,9 +305,16 @@ def cmd_parity(args) -> None:
     """The Principled-parity check (pipeline.run_parity) for each HDRI of --parity-hdris, or
     for --hdri."""
     base = settings_from(args, "osl", "full")
-    hdris = [Path(args.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
+    if base.lights:         # one run under the lights, with --hdri or the first parity HDRI
+        hdris = [Path(args.hdri)] if args.hdri else \
+            pipeline.parity_hdris(args.parity_hdris)[:1]
+        name = Path(base.lights_file).stem
+    else:
+        hdris = [Path(args.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
+        name = None
     out = check_path("out/parity" if args.out is None else args.out, "--out")
-    result = pipeline.run_parity(base, hdris, args.samples, out, events(), args.verbose)
+    result = pipeline.run_parity(base, hdris, args.samples, out, events(), args.verbose,
+                                 name=name)
     say(f"done: parity {'holds' if result['holds'] else 'FAILS'} (every sphere's mean "
         f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}")
 

@@ -71,7 +71,7 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
     log = None if verbose else os.devnull      # Blender's own per-tile lines
     for i, (view, out_dir) in enumerate(out_dirs.items()):
         events.check()
-        model = ModelOptions(**dict(vars(settings.model), view=view))
+        model = settings.model_options(view=view)
         description["model"] = model.as_dict()
         if node is not None:
             model_node.set_options(node, model)
@@ -202,11 +202,14 @@ def parity_hdris(names: str) -> list:
 
 
 def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
-               events: Events | None = None, verbose: bool = False) -> dict:
+               events: Events | None = None, verbose: bool = False,
+               name: str | None = None) -> dict:
     """With Smith G, Lambert diffuse, metallic 1, the Sun off and no sphere shadowing another,
     the model is Principled BSDF's single-scatter GGX metal, so our reference integration and
-    Cycles' path tracer must agree up to noise: both rendered under each HDRI and compared.
-    Returns the verdict, the report and each HDRI's comparison."""
+    Cycles' path tracer must agree up to noise: both rendered under each HDRI (and the base's
+    lights, if it has any) and compared, each into OUT/<HDRI stem>/, or OUT/<name>/ for a
+    single HDRI given a name (the lights file's stem). Returns the verdict, the report and
+    each run's comparison."""
     events = events or Events()
     jobs = []
     for hdri in hdris:
@@ -216,7 +219,7 @@ def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
         pr = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="principled",
                                        ibl="reference", view="full",
                                        principled_distribution="GGX"))
-        jobs.append((Path(hdri).stem, ct, pr))
+        jobs.append((name if name and len(hdris) == 1 else Path(hdri).stem, ct, pr))
     check_writable(out)
     _forget_report(out)
     steps, step, entries = 2 * len(jobs) + 1, 0, []

@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import bpy
 
-from ..blender import convert, light_sync, model_node
+from ..blender import convert, light_sync, model_node, scene_lights
 from .operators import (CTLAB_OT_add_node_group, CTLAB_OT_add_texture,
                         CTLAB_OT_bake_environment, CTLAB_OT_build_sphere_matrix,
                         CTLAB_OT_cancel_comparison, CTLAB_OT_convert_to_cook_torrance,
                         CTLAB_OT_convert_to_principled, CTLAB_OT_new_material,
                         CTLAB_OT_render_comparison, CTLAB_OT_set_view_all,
                         CTLAB_OT_switch_implementation, CTLAB_OT_sync_lighting, JOBS)
-from ..core.model import ggx_alpha, perceptual_roughness
+from ..core.model import LIGHT_SLOTS, ggx_alpha, perceptual_roughness
 
 
 def _source_label(sock: bpy.types.NodeSocket) -> str:
@@ -126,6 +126,20 @@ class CTLAB_PT_material(bpy.types.Panel):
         box.label(text=f"Key light: {sun.name}" if sun else "Key light: none (no Sun in the scene)",
                   icon='LIGHT_SUN')
         box.prop(scene, "ctlab_sun")
+        used, unused = scene_lights.scene_lights(scene, exclude=sun)
+        box.label(text=f"Other lights: {len(used)} shaded (of {LIGHT_SLOTS} slots)"
+                  if used else "Other lights: none", icon='LIGHT')
+        for obj in used:
+            problems = scene_lights.unsupported(obj)
+            box.label(text=f"  {obj.name}" + (f" (not followed: {', '.join(problems)})"
+                                               if problems else ""),
+                      icon='ERROR' if problems else 'DOT')
+        if unused:
+            box.label(text=f"Not shaded (more lights than slots; the dimmest): "
+                           f"{', '.join(o.name for o in unused)}", icon='ERROR')
+        if impl == "nodes" and (used or sun):
+            box.label(text="The node group's lights cast no shadows (it cannot trace)",
+                      icon='INFO')
         hdri = light_sync.world_hdri_path(scene)
         box.label(text=f"HDRI: {bpy.path.basename(hdri)}" if hdri
                   else "HDRI: none; the world's colour", icon='WORLD')
