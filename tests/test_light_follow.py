@@ -19,7 +19,7 @@ CENTRES = {"principled": -1.0, "cook_torrance": 1.0}      # sphere centres (m) a
 RADIUS = 0.8
 
 
-def _scene():
+def _scene(implementation="nodes"):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.world = scene_builder.build_world(MatrixSettings(),
@@ -56,8 +56,8 @@ def _scene():
         obj.select_set(False)
     objects["cook_torrance"].select_set(True)
     bpy.context.view_layer.objects.active = objects["cook_torrance"]
-    assert bpy.ops.ctlab.convert_to_cook_torrance(implementation="nodes") == {'FINISHED'}
-    renderer.configure(scene, "nodes", "full", 64)        # Cycles SVM, no denoising
+    assert bpy.ops.ctlab.convert_to_cook_torrance(implementation=implementation) == {'FINISHED'}
+    renderer.configure(scene, implementation, "full", 64)   # no denoising
     scene.cycles.max_bounces = 0            # direct light: what the model's integrator covers
     return scene, sun
 
@@ -96,3 +96,95 @@ def test_sun_and_hdri_rotation_change_cook_torrance_like_principled(tmp_path):
     # measured 0.984 and 0.970 on 4.5 and 5.2 (Principled's 64-sample noise is the residue);
     # with the world's rotation not followed (its driver removed) 0.53 and 0.61
     assert corr > 0.97 and 0.94 < ratio < 1.06, (corr, ratio)
+
+
+def _light(scene, name, kind, location, energy, **props):
+    """A light aimed at the origin, as an artist places one."""
+    from mathutils import Vector
+    data = bpy.data.lights.new(name, kind)
+    data.energy = energy
+    for key, value in props.items():
+        setattr(data, key, value)
+    obj = bpy.data.objects.new(name, data)
+    obj.location = location
+    obj.rotation_euler = (-Vector(location)).to_track_quat('-Z', 'Y').to_euler()
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def test_a_three_point_setup_changes_cook_torrance_like_principled(tmp_path):
+    """The factory scene's way of lighting: a key Area light, a fill Point, a rim Spot, the
+    Sun gone and the world dim. The converted material (OSL) renders the set-up's edits (the
+    key moved and resized, the fill recoloured, the rim's cone narrowed, then the rim disabled
+    for rendering and a kicker light added) as its Principled original does: the light sync
+    handler gives the lights their slots, drivers follow the rest. Local lights light two
+    places differently, so the two spheres take turns at the same place."""
+    from addon.blender import model_node, scene_lights
+    from addon.core.model import LIGHT_TYPE_CODES
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    register.register()
+    try:
+        scene, sun = _scene("osl")
+        bpy.data.objects.remove(sun)
+        spheres = {name: bpy.data.objects[name] for name in CENTRES}
+        for obj in spheres.values():
+            obj.location = (0.0, 0.0, 0.0)
+        background = next(n for n in scene.world.node_tree.nodes
+                          if n.bl_idname == "ShaderNodeBackground")
+        background.inputs["Strength"].default_value = 0.05
+        key = _light(scene, "Key", 'AREA', (-3.0, -4.0, 3.0), 600.0, shape='RECTANGLE',
+                     size=1.5, size_y=1.0)
+        fill = _light(scene, "Fill", 'POINT', (4.0, -3.0, 1.0), 300.0, shadow_soft_size=0.3)
+        rim = _light(scene, "Rim", 'SPOT', (0.5, 4.0, 3.0), 1500.0, spot_size=1.2,
+                     spot_blend=0.3, shadow_soft_size=0.1)
+        bpy.context.view_layer.update()              # the depsgraph handler syncs the slots
+        node = model_node.find(spheres["cook_torrance"].active_material)
+        # the model in Principled's terms (Smith G, Lambert) and Principled single-scatter, so
+        # that what is left is the lights' (the rim light lives at grazing angles, where the
+        # Cook-Torrance G and multiple scattering differ most)
+        model_node.set_option(node, "g_model", "smith_ggx_correlated")
+        model_node.set_option(node, "diffuse_model", "lambert")
+        spheres["principled"].active_material.node_tree.nodes["Principled BSDF"].distribution \
+            = 'GGX'
+        types = sorted(scene_lights.slot_type(node, i) for i in (1, 2, 3))
+        assert types == sorted(LIGHT_TYPE_CODES[k] for k in
+                               ("AREA_RECTANGLE", "POINT", "SPOT")), types
+
+        def render_both(stage):
+            """Each sphere's luminance in 8x8-pixel blocks over its disc (blocks smooth the
+            noise of 64 samples, whose pixel-level variance swamps a light's small change)."""
+            images = {}
+            yy, xx = np.mgrid[0:H, 0:W] + 0.5
+            r = 0.9 * RADIUS * PX_PER_M
+            disc = (xx - W / 2) ** 2 + (yy - H / 2) ** 2 < r * r
+            for name in CENTRES:
+                for other, obj in spheres.items():
+                    obj.hide_render = other != name
+                folder = tmp_path / f"{stage}-{name}"
+                renderer.render(scene, folder, {})
+                image = _luminance(read_image(folder / "render.exr")) * disc
+                blocks = image.reshape(H // 8, 8, W // 8, 8).sum(axis=(1, 3))
+                count = disc.reshape(H // 8, 8, W // 8, 8).sum(axis=(1, 3))
+                images[name] = blocks[count > 32] / count[count > 32]
+            return images
+
+        stages = [render_both("before")]
+        key.location = (-2.0, -4.5, 1.0)
+        key.rotation_euler = (-key.location).to_track_quat('-Z', 'Y').to_euler()
+        key.data.size = 2.5
+        fill.data.color = (0.2, 0.4, 1.0)
+        rim.data.spot_size = 0.6
+        bpy.context.view_layer.update()
+        stages.append(render_both("middle"))
+        rim.hide_render = True
+        _light(scene, "Kicker", 'POINT', (-4.0, -1.0, -2.0), 400.0, shadow_soft_size=0.2)
+        bpy.context.view_layer.update()
+        stages.append(render_both("after"))
+    finally:
+        register.unregister()
+    for first, second in zip(stages, stages[1:]):
+        p, c = (second[n] - first[n] for n in CENTRES)
+        assert np.abs(p).mean() > 0.1 * first["principled"].mean()      # a real change
+        corr = np.corrcoef(p, c)[0, 1]
+        ratio = np.abs(c).mean() / np.abs(p).mean()
+        assert corr > 0.95 and 0.9 < ratio < 1.1, (corr, ratio)

@@ -25,13 +25,13 @@ MATRIX_TAG = "ctlab_matrix"       # the matrix builder manages its own material 
 
 def key_sun(scene: bpy.types.Scene) -> bpy.types.Object | None:
     """The Sun the model's key light follows: the scene's chosen one (Scene.ctlab_sun), else
-    its first Sun light by name, else None (no key light)."""
+    its first Sun light by name that renders, else None (no key light)."""
     chosen = getattr(scene, "ctlab_sun", None)
     if chosen is not None and chosen.type == 'LIGHT' and chosen.data.type == 'SUN' \
             and chosen.name in scene.objects:
         return chosen
-    suns = sorted((o for o in scene.objects if o.type == 'LIGHT' and o.data.type == 'SUN'),
-                  key=lambda o: o.name)
+    suns = sorted((o for o in scene.objects if o.type == 'LIGHT' and o.data.type == 'SUN'
+                   and scene_lights.renders(o, scene)), key=lambda o: o.name)
     return suns[0] if suns else None
 
 

@@ -52,8 +52,12 @@ def new_light_object(light: core_lights.Light, name: str) -> bpy.types.Object:
     return obj
 
 
-def _renders(obj, view_layer) -> bool:
-    if obj.hide_render or obj.name not in view_layer.objects:
+def renders(obj: bpy.types.Object, scene: bpy.types.Scene) -> bool:
+    """Whether a light renders in the scene's first view layer: in it, not disabled for
+    rendering, in no collection disabled for rendering."""
+    if not scene.view_layers:
+        return False
+    if obj.hide_render or obj.name not in scene.view_layers[0].objects:
         return False
     return not any(c.hide_render for c in obj.users_collection)
 
@@ -61,11 +65,8 @@ def _renders(obj, view_layer) -> bool:
 def scene_lights(scene: bpy.types.Scene, exclude=None) -> list:
     """The light objects the model shades in ``scene``, in slot order, and those left over:
     (used, unused). ``exclude``: the key Sun."""
-    view_layer = scene.view_layers[0] if scene.view_layers else None
-    if view_layer is None:
-        return [], []
     candidates = [o for o in scene.objects if o.type == 'LIGHT' and o is not exclude
-                  and o.data.type in core_lights.TYPES and _renders(o, view_layer)]
+                  and o.data.type in core_lights.TYPES and renders(o, scene)]
     order = core_lights.ranked(candidates, key=as_light)
     return order[:LIGHT_SLOTS], order[LIGHT_SLOTS:]
 

@@ -25,7 +25,6 @@ from ..core.errors import Cancelled
 from ..core.files import check_writable, refuse_overwrite
 from ..core.hdri import load_hdri
 from ..core.report import write_parity_report, write_report
-from ..core.model import ModelOptions
 from ..core.settings import MatrixSettings, with_overrides
 
 
