@@ -35,6 +35,10 @@ def terms(n, v, l, albedo, metallic, smoothness, g_model="cook_torrance", diffus
     F = spec + (1 - spec) * ((1 - LdotH) ** 5)[..., None]
     if g_model == "cook_torrance":
         G = np.minimum(1, np.minimum(2 * NdotH * NdotV / VdotH, 2 * NdotH * NdotL / VdotH))
+    elif g_model == "unity_smith_joint":       # Unity's V = 0.5 / (lambda_v + lambda_l + 1e-5)
+        V = 0.5 / (NdotL * (NdotV * (1 - alpha) + alpha) + NdotV * (NdotL * (1 - alpha) + alpha)
+                   + 1e-5)
+        G = 4 * NdotL * NdotV * V
     else:
         def lam(c):                      # Smith Lambda for GGX; c = 0 gives Lambda = inf, G = 0
             with np.errstate(divide="ignore"):

@@ -15,6 +15,7 @@ from addon.core import ibl_bake
 from addon.core.compare import read_image
 from addon.core.errors import UserError
 from addon.core.hdri import write_float_exr
+from addon.core.model import G_MODELS
 
 pytestmark = pytest.mark.quick       # no renders
 
@@ -49,7 +50,7 @@ DFG_ENTRIES = ((12, 40), (12, 63), (20, 12), (32, 3), (32, 30), (48, 3), (48, 50
                (63, 63))
 
 
-@pytest.mark.parametrize("g_model", ["cook_torrance", "smith_ggx_correlated"])
+@pytest.mark.parametrize("g_model", G_MODELS)
 def test_dfg_table_matches_brute_force_quadrature(forest_bake, g_model):
     """A and B read from the baked EXR equal the directional albedo of f_s integrated by
     brute-force midpoint quadrature over (theta_l, phi_l) of the model's formulas (F0 = 1 gives
@@ -207,7 +208,7 @@ def test_bake_repairs_nan_and_inf_texels_with_a_warning(tmp_path):
     names = sorted(x.name for x in out.iterdir())
     assert names == sorted([ibl_bake.level_file(m) for m in range(7)]
                            + [ibl_bake.IRRADIANCE_FILE, ibl_bake.INFO_FILE]
-                           + [ibl_bake.dfg_file(g) for g in ("cook_torrance", "smith_ggx_correlated")])
+                           + [ibl_bake.dfg_file(g) for g in G_MODELS])
     for name in names:
         if name.endswith(".exr"):
             assert np.isfinite(read_image(out / name)).all(), name
@@ -279,7 +280,7 @@ def test_the_shipped_dfg_tables_are_what_integrating_them_gives(tmp_path, monkey
     bake need not integrate them; they must equal a fresh integration with today's model and
     parameters (run the script after changing either), and a bake in an empty cache must use
     them without integrating."""
-    for g in ("cook_torrance", "smith_ggx_correlated"):
+    for g in G_MODELS:
         shipped = ibl_bake.shipped_dfg(g)
         assert shipped is not None, "addon/data lacks a table for today's parameters"
         np.testing.assert_allclose(shipped, ibl_bake.dfg_table(g), rtol=1e-6, atol=1e-7,

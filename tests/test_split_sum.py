@@ -6,7 +6,7 @@ import numpy as np
 from conftest import render, sphere_pixels
 from reference_model import specular_albedo
 from addon.core.compare import ciede2000, read_image, srgb_to_lab
-from addon.core.model import REC709_LUMINANCE
+from addon.core.model import G_MODELS, REC709_LUMINANCE
 
 A = (0.9, 0.5, 0.2)
 WHITE = dict(grid=(3, 3), size=96, samples=1, sun_strength=0.0, albedo=A, pixel_centres=True)
@@ -48,7 +48,7 @@ def test_split_sum_in_a_white_furnace_is_the_directional_albedo(tmp_path, unifor
     the cosine-weighted mean of Burley's factor (1 for Lambert). 1% covers the bilinear
     lookup between table texels."""
     views = ("indirect_specular", "indirect_diffuse", "normal")
-    for g_model in ("cook_torrance", "smith_ggx_correlated"):
+    for g_model in G_MODELS:
         img, scene = render(tmp_path / g_model, view=views, ibl="split_sum", hdri=uniform_hdri,
                             g_model=g_model, **WHITE)
         checked = 0

@@ -13,6 +13,7 @@ CASES = {
     "seed": dict(),
     "smith_lambert_unity": dict(g_model="smith_ggx_correlated", diffuse_model="lambert",
                                 units="unity"),
+    "unity_brdf1": dict(g_model="unity_smith_joint", units="unity"),
 }
 
 

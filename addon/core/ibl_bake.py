@@ -52,7 +52,8 @@ IRRADIANCE_WIDTH = 128
 DFG_SIZE = 64
 # Quadrature grid per table entry (GGX inverse CDF, azimuth); Cook-Torrance's min() has kinks
 # in azimuth that need the finer grid. Both stay within 4e-4 of a 16x finer grid.
-DFG_SAMPLES = {"cook_torrance": (256, 128), "smith_ggx_correlated": (256, 64)}
+DFG_SAMPLES = {"cook_torrance": (256, 128), "smith_ggx_correlated": (256, 64),
+               "unity_smith_joint": (256, 64)}
 
 
 def level_file(m: int) -> str:
@@ -205,6 +206,8 @@ def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi:
     if g_model == "smith_ggx_correlated":
         G = 2.0 * nl * nv / np.maximum(nl * np.sqrt(nv * nv * (1 - a * a) + a * a)
                                        + nv * np.sqrt(nl * nl * (1 - a * a) + a * a), 1e-30)
+    elif g_model == "unity_smith_joint":
+        G = 2.0 * nl * nv / (nl * (nv * (1 - a) + a) + nv * (nl * (1 - a) + a) + 1e-5)
     else:
         G = np.minimum(1.0, 2.0 * nh * np.minimum(nv, nl) / np.maximum(vh, 1e-12))
     weight = G * vh / (nh * nv) * du * phi_max / (np.pi * nu * nphi)

@@ -13,7 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 # --- Switches (docs/model.md "Switches"); the first value is the default.
-G_MODELS = ("cook_torrance", "smith_ggx_correlated")
+# unity_smith_joint: Unity's approximate height-correlated Smith visibility
+# (SmithJointGGXVisibilityTerm in UnityStandardBRDF.cginc), BRDF1_Unity_PBS's G
+G_MODELS = ("cook_torrance", "smith_ggx_correlated", "unity_smith_joint")
 DIFFUSE_MODELS = ("disney", "lambert")
 UNITS = ("physical", "unity")
 # reference: Monte Carlo against the HDRI (OSL only); split_sum (Karis 2013) and unity
@@ -83,8 +85,9 @@ OPTIONS = (
     Input("view", "View", "INT", 0,
           ", ".join(f"{i} {v}" for i, v in enumerate(VIEWS)), osl="view", group="View",
           min=0, max=len(VIEWS) - 1, values=VIEWS),
-    Input("g_model", "G", "INT", 0, "0: Cook-Torrance G; 1: height-correlated Smith G",
-          osl="g_model", group="G Smith", values=G_MODELS),
+    Input("g_model", "G", "INT", 0, "0: Cook-Torrance G; 1: height-correlated Smith G; "
+          "2: Unity's Smith joint visibility", osl="g_model", group="G Model",
+          max=len(G_MODELS) - 1, values=G_MODELS),
     Input("diffuse_model", "Diffuse", "INT", 0, "0: Disney diffuse; 1: Lambert",
           osl="diffuse_model", group="Diffuse Lambert", values=DIFFUSE_MODELS),
     Input("units", "Units", "INT", 0,

@@ -16,6 +16,7 @@ from ..blender import model_node
 from ..core.model import IBL_LABELS, OPTION_VALUES
 
 _LABELS = {"cook_torrance": "Cook-Torrance", "smith_ggx_correlated": "Smith (height-correlated)",
+           "unity_smith_joint": "Unity (Smith joint approximation)",
            "disney": "Disney", "lambert": "Lambert", "physical": "Physical", "unity": "Unity",
            "NdotL": "N·L", "NdotV": "N·V", "NdotH": "N·H", "VdotH": "V·H", "D": "D", "F": "F",
            "G": "G", "spec_color": "Specular Colour", "specular_brdf": "Specular BRDF",
