@@ -208,7 +208,8 @@ def test_bake_repairs_nan_and_inf_texels_with_a_warning(tmp_path):
     names = sorted(x.name for x in out.iterdir())
     assert names == sorted([ibl_bake.level_file(m) for m in range(7)]
                            + [ibl_bake.IRRADIANCE_FILE, ibl_bake.INFO_FILE]
-                           + [ibl_bake.dfg_file(g) for g in G_MODELS])
+                           + [ibl_bake.dfg_file(g) for g in G_MODELS]
+                           + [ibl_bake.ms_file(g) for g in G_MODELS])
     for name in names:
         if name.endswith(".exr"):
             assert np.isfinite(read_image(out / name)).all(), name

@@ -312,3 +312,38 @@ def test_the_lights_files_in_docs_are_valid_and_ranked_suns_first():
     assert ranked[0].type == "SUN"
     powers = [sum(w * c for w, c in zip(LUM, light.power())) for light in ranked[1:]]
     assert powers == sorted(powers, reverse=True)
+
+
+@pytest.mark.quick
+def test_the_slots_go_to_the_lights_that_render_suns_first_then_the_brightest():
+    """Which lights the model shades (docs/model.md "Lights"): those that render in the view
+    layer (not hidden from rendering, not in an excluded or render-disabled collection), the key
+    Sun apart, Suns first and then by power; beyond 8 they are left over, the dimmest."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+
+    def light(name, kind, energy, collection=None):
+        obj = bpy.data.objects.new(name, bpy.data.lights.new(name, kind))
+        obj.data.energy = energy
+        (collection or scene.collection).objects.link(obj)
+        return obj
+    key = light("Key", 'SUN', 3.0)
+    for i in range(2):
+        light(f"Sun {i}", "SUN", 0.1)
+    for i in range(8):
+        light(f"Point {i}", "POINT", 10.0 * (i + 1))
+    hidden = light("Hidden", 'POINT', 1e4)
+    hidden.hide_render = True
+    off = bpy.data.collections.new("Off")
+    scene.collection.children.link(off)
+    excluded = light("Excluded", 'SPOT', 1e4, off)
+    scene.view_layers[0].layer_collection.children["Off"].exclude = True
+    used, unused = scene_lights.scene_lights(scene, exclude=key)
+    assert [o.name for o in used] == ["Sun 0", "Sun 1"] + [f"Point {i}" for i in (7, 6, 5, 4, 3, 2)]
+    assert [o.name for o in unused] == ["Point 1", "Point 0"]
+    assert hidden not in used + unused and excluded not in used + unused
+    scene.view_layers[0].layer_collection.children["Off"].exclude = False
+    off.hide_render = True
+    assert excluded not in sum(scene_lights.scene_lights(scene, exclude=key), [])
+    off.hide_render = False
+    assert excluded in scene_lights.scene_lights(scene, exclude=key)[0]

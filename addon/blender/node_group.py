@@ -684,7 +684,10 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
 def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
     """Point the group's texture nodes at a bake folder's files (addon/ibl_bake.py)."""
     folder = Path(folder)
-    for node in group.nodes:
+    trees = [group] + list({n.node_tree for n in group.nodes          # and the per-light group
+                            if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None
+                            and n.node_tree.get(LIGHT_GROUP)})
+    for node in (node for tree in trees for node in tree.nodes):
         if BAKE_FILE not in node:
             continue
         path = folder / f"{node[BAKE_FILE]}.exr"

@@ -77,8 +77,9 @@ def set_environment(node: bpy.types.ShaderNodeScript, hdri, bake=None) -> None:
     also its width in texels, which the shader needs to filter lat-long images near their
     edges (the bake's level 0 is the HDRI itself, so either file tells it)."""
     from ..core.hdri import image_width
-    from ..core.ibl_bake import level_file
+    from ..core.ibl_bake import level_file, tables_folder
     socket(node, "hdri").default_value = str(hdri) if hdri else ""
+    socket(node, "tables").default_value = str(tables_folder())
     if bake is not None:
         socket(node, "ibl_bake").default_value = str(bake)
     bake = socket(node, "ibl_bake").default_value

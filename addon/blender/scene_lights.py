@@ -52,21 +52,39 @@ def new_light_object(light: core_lights.Light, name: str) -> bpy.types.Object:
     return obj
 
 
-def renders(obj: bpy.types.Object, scene: bpy.types.Scene) -> bool:
-    """Whether a light renders in the scene's first view layer: in it, not disabled for
-    rendering, in no collection disabled for rendering."""
-    if not scene.view_layers:
+def _rendering_collections(scene: bpy.types.Scene) -> set:
+    """The collections of the scene's first view layer that render: not excluded from it and
+    neither they nor a parent disabled for rendering (read from the layer collections, which
+    are up to date at once; ViewLayer.objects is synced only when the depsgraph updates)."""
+    found = set()
+
+    def walk(layer, hidden):
+        hidden = hidden or layer.collection.hide_render
+        if layer.exclude or hidden:
+            return
+        found.add(layer.collection.name_full)
+        for child in layer.children:
+            walk(child, hidden)
+    if scene.view_layers:
+        walk(scene.view_layers[0].layer_collection, False)
+    return found
+
+
+def renders(obj: bpy.types.Object, scene: bpy.types.Scene, collections=None) -> bool:
+    """Whether an object renders in the scene's first view layer: not disabled for rendering,
+    in a collection that renders (``collections``: _rendering_collections, computed once)."""
+    if obj.hide_render:
         return False
-    if obj.hide_render or obj.name not in scene.view_layers[0].objects:
-        return False
-    return not any(c.hide_render for c in obj.users_collection)
+    collections = _rendering_collections(scene) if collections is None else collections
+    return any(c.name_full in collections for c in obj.users_collection)
 
 
 def scene_lights(scene: bpy.types.Scene, exclude=None) -> list:
     """The light objects the model shades in ``scene``, in slot order, and those left over:
     (used, unused). ``exclude``: the key Sun."""
+    collections = _rendering_collections(scene)
     candidates = [o for o in scene.objects if o.type == 'LIGHT' and o is not exclude
-                  and o.data.type in core_lights.TYPES and renders(o, scene)]
+                  and o.data.type in core_lights.TYPES and renders(o, scene, collections)]
     order = core_lights.ranked(candidates, key=as_light)
     return order[:LIGHT_SLOTS], order[LIGHT_SLOTS:]
 

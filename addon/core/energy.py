@@ -29,13 +29,15 @@ def white_world() -> Path:
     return uniform_world((1.0, 1.0, 1.0))
 
 
-def furnace_settings(g_model: str, env_samples: int = 4, seed: int = 0):
+def furnace_settings(g_model: str, env_samples: int = 4, seed: int = 0, energy: str = "none",
+                     ibl: str = "reference"):
     from .settings import MatrixSettings
     return MatrixSettings(rows=ROWS, cols=1, width=WIDTH, height=HEIGHT, hdri=str(white_world()),
                           sun_strength=0.0, metallic=1.0, albedo=(1.0, 1.0, 1.0),
                           mutual_shadows=False, shader="osl",
                           model=ModelOptions(view="indirect_specular", g_model=g_model,
-                                             ibl="reference", env_samples=env_samples, seed=seed))
+                                             energy=energy, ibl=ibl, env_samples=env_samples,
+                                             seed=seed))
 
 
 def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list:

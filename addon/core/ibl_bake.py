@@ -43,7 +43,7 @@ from .files import DATA_DIR, check_writable, copy_file, refuse_overwrite, write_
 from .hdri import file_hash, load_hdri, write_float_exr
 from .model import G_MODELS, MIN_ALPHA
 
-VERSION = 3
+VERSION = 4      # 4: the multiple-scattering tables (ms_<G>.exr)
 LEVEL_COUNT = 7
 LEVEL_ROUGHNESS = tuple(m / (LEVEL_COUNT - 1) for m in range(LEVEL_COUNT))
 # Width of each pre-filtered level (0: the source's own); the lobe's half-width spans >= 3 texels.
@@ -273,6 +273,44 @@ def shipped_dfg(g_model: str) -> np.ndarray | None:
     return table.astype(np.float32)
 
 
+def dfg_values(g_model: str) -> np.ndarray:
+    """The DFG table of one G option: the shipped one, else integrated."""
+    table = shipped_dfg(g_model)
+    return dfg_table(g_model) if table is None else table
+
+
+def ms_table(dfg: np.ndarray) -> np.ndarray:
+    """The multiple-scattering table (Kulla and Conty 2017) from a DFG table, same axes:
+    channel 0 is E(n.v, pr) = A + B, the directional albedo of the single-scattering specular
+    lobe with F = 1; channel 1 is E_avg(pr) = 2 integral_0^1 E(mu) mu dmu (trapezoids over the
+    table's columns), the same along a row; channel 2 is 0."""
+    E = np.clip(dfg[..., 0] + dfg[..., 1], 0.0, 1.0).astype(np.float64)
+    mu = np.maximum(dfg_axis(dfg.shape[1]), DFG_MIN_NDOTV)
+    e_avg = 2.0 * np.sum(0.5 * (E[:, 1:] * mu[1:] + E[:, :-1] * mu[:-1]) * np.diff(mu), axis=1)
+    table = np.zeros(dfg.shape, np.float32)
+    table[..., 0] = E
+    table[..., 1] = np.clip(e_avg, 0.0, 1.0)[:, None]
+    return table
+
+
+def tables_folder() -> Path:
+    """The model's HDRI-independent tables in the cache, one folder: dfg_<G>.exr and
+    ms_<G>.exr for every G option (the OSL shader's energy compensation reads them)."""
+    key = f"tables-v{VERSION}-{DFG_SIZE}-" + "-".join(
+        f"{g}{s[0]}x{s[1]}" for g, s in DFG_SAMPLES.items())
+
+    def fill(stage):
+        for g in G_MODELS:
+            dfg = dfg_values(g)
+            write_float_exr(stage / dfg_file(g), dfg)
+            write_float_exr(stage / ms_file(g), ms_table(dfg))
+    return cache.cached(key, fill)
+
+
+def ms_file(g_model: str) -> str:
+    return f"ms_{g_model}.exr"
+
+
 def dfg_path(g_model: str) -> Path:
     """The DFG table of one G option (independent of the HDRI) in the cache: the shipped one,
     or integrated once per cache when none matches."""
@@ -280,8 +318,7 @@ def dfg_path(g_model: str) -> Path:
     key = f"dfg-v{VERSION}-{g_model}-{size}-{samples[0]}x{samples[1]}"
 
     def fill(stage):
-        table = shipped_dfg(g_model)
-        write_float_exr(stage / "dfg.exr", dfg_table(g_model) if table is None else table)
+        write_float_exr(stage / "dfg.exr", dfg_values(g_model))
     return cache.cached(key, fill) / "dfg.exr"
 
 
@@ -309,6 +346,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
     if repaired and warn is not None:
         warn(f"{hdri_path} holds {repaired} NaN/Inf pixel(s); they were set to 0 for the bake")
     dfg = {}
+    tables = tables_folder()
     for g in G_MODELS:
         _report(progress, 0.05, f"DFG table ({g}; once per cache)")
         dfg[g] = dfg_path(g)
@@ -345,6 +383,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
         timings[IRRADIANCE_FILE] = round(time.perf_counter() - t, 3)
         for g, path in dfg.items():
             shutil.copyfile(path, stage / dfg_file(g))
+            shutil.copyfile(tables / ms_file(g), stage / ms_file(g))
         info = {"version": VERSION, "source": str(hdri_path), "source_hash": source_hash,
                 "source_size": [W, H], "repaired_texels": repaired, "levels": levels,
                 "irradiance": {"file": IRRADIANCE_FILE, "width": irr.shape[1],
@@ -353,6 +392,8 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
                 "dfg_axes": "column i: n.v = i/(N-1) (column 0: n.v = 1e-3); row j (top "
                             "first): pr = j/(N-1); look up at ((x (N-1) + 0.5)/N)",
                 "dfg_channels": ["A (specColor scale)", "B (bias)", "Disney diffuse factor"],
+                "ms": {g: ms_file(g) for g in dfg},
+                "ms_channels": ["E = A + B (F = 1)", "E_avg", "0"],
                 "seconds": round(time.perf_counter() - start, 3), "timings": timings}
         write_json(stage / INFO_FILE, info)
 
@@ -364,7 +405,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
 def file_names() -> list:
     """The files of a bake, as ``export`` copies them."""
     return ([level_file(m) for m in range(LEVEL_COUNT)] + [IRRADIANCE_FILE, INFO_FILE]
-            + [dfg_file(g) for g in G_MODELS])
+            + [dfg_file(g) for g in G_MODELS] + [ms_file(g) for g in G_MODELS])
 
 
 def export(folder: Path, out_dir: Path, source=None) -> None:

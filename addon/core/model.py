@@ -17,6 +17,9 @@ from dataclasses import dataclass, field
 # (SmithJointGGXVisibilityTerm in UnityStandardBRDF.cginc), BRDF1_Unity_PBS's G
 G_MODELS = ("cook_torrance", "smith_ggx_correlated", "unity_smith_joint")
 DIFFUSE_MODELS = ("disney", "lambert")
+# none: the seed's single-scattering specular; compensated: Kulla and Conty's (2017) lobe for
+# the energy that single scattering loses
+ENERGY_MODES = ("none", "compensated")
 UNITS = ("physical", "unity")
 # reference: Monte Carlo against the HDRI (OSL only); split_sum (Karis 2013) and unity
 # (Unity's reflection-probe approximation) read the files baked by core.ibl_bake.
@@ -93,6 +96,9 @@ OPTIONS = (
     Input("units", "Units", "INT", 0,
           "0: physical; 1: Unity (x pi on direct light and the BRDF views)",
           osl="units", group="Units Unity", values=UNITS),
+    Input("energy", "Energy", "INT", 0,
+          "0: single scattering (the seed's model); 1: Kulla-Conty multiple scattering",
+          osl="energy", group="Energy Compensated", values=ENERGY_MODES),
     # the group has no reference mode: IBL Unity 0 is split_sum, 1 unity
     Input("ibl", "IBL", "INT", 0, "0: split-sum; 1: Unity's approximation",
           osl="ibl", group="IBL Unity", values=IBL_MODES),
@@ -167,6 +173,9 @@ OSL_ONLY = (
     Input("ibl_bake", "IBL Bake Folder", "STRING", "", "The split-sum bake (core.ibl_bake)",
           osl="ibl_bake"),
     Input("hdri", "HDRI", "STRING", "", "The world's equirectangular HDRI", osl="hdri"),
+    Input("tables", "Tables Folder", "STRING", "",
+          "The model's DFG and multiple-scattering tables (core.ibl_bake.tables_folder)",
+          osl="tables"),
     Input("hdri_width", "HDRI Width", "INT", 0, "The HDRI's width in texels", osl="hdri_width"),
     Input("env_marginal", "Env Marginal Table", "STRING", "",
           "Environment sampling: the rows' inverse CDF", osl="env_marginal"),
@@ -222,12 +231,14 @@ class ModelOptions:
     the reference integrator's settings."""
 
     def __init__(self, view="full", g_model=G_MODELS[0], diffuse_model=DIFFUSE_MODELS[0],
-                 units=UNITS[0], ibl=IBL_MODES[0], env_samples=4, env_visibility=False,
+                 units=UNITS[0], energy=ENERGY_MODES[0], ibl=IBL_MODES[0], env_samples=4,
+                 env_visibility=False,
                  sun_shadow=True, shadow_rays=True, seed=0):
         self.view = view
         self.g_model = g_model
         self.diffuse_model = diffuse_model
         self.units = units
+        self.energy = energy
         self.ibl = ibl
         self.env_samples = int(env_samples)
         self.env_visibility = bool(env_visibility)

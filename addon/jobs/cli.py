@@ -27,7 +27,7 @@ from pathlib import Path
 from . import pipeline
 from ..blender.renderer import ENGINES
 from ..core.errors import Cancelled, UserError
-from ..core.model import (DIFFUSE_MODELS, G_MODELS, IBL_MODES, MATRIX_ALBEDO, UNITS, VIEWS,
+from ..core.model import (DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IBL_MODES, MATRIX_ALBEDO, UNITS, VIEWS,
                           ModelOptions)
 from ..core.settings import SHADERS, MatrixSettings
 
@@ -165,6 +165,8 @@ SCENE_ARGS = (
     Arg("--g", "g_model", "|".join(G_MODELS), str, G_MODELS[0]),
     Arg("--diffuse", "diffuse_model", "|".join(DIFFUSE_MODELS), str, DIFFUSE_MODELS[0]),
     Arg("--units", "units", "|".join(UNITS), str, UNITS[0]),
+    Arg("--energy", "energy", "|".join(ENERGY_MODES) + " (compensated: Kulla-Conty multiple "
+        "scattering)", str, ENERGY_MODES[0]),
     Arg("--env-samples", "env_samples", "environment samples per shading point and render "
         "sample (each of BRDF and environment sampling)", int, 4),
     Arg("--env-visibility", "env_visibility",
@@ -219,7 +221,7 @@ def settings_from(args, shader: str, view: str) -> MatrixSettings:
         raise UserError(f"samples {args.samples} out of range; use 1 to 65536")
     ibl = args.ibl or ("split_sum" if shader == "nodes" else IBL_MODES[0])
     model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
-                         units=args.units, ibl=ibl, env_samples=args.env_samples,
+                         units=args.units, energy=args.energy, ibl=ibl, env_samples=args.env_samples,
                          env_visibility=args.env_visibility, seed=args.seed)
     s = MatrixSettings(rows=rows, cols=cols, hdri=args.hdri, hdri_strength=args.hdri_strength,
                        hdri_rotation=args.hdri_rotation,

@@ -102,6 +102,7 @@ class CTLAB_PT_material(bpy.types.Panel):
         col.prop(mat, "ctlab_g_model")
         col.prop(mat, "ctlab_diffuse_model")
         col.prop(mat, "ctlab_units")
+        col.prop(mat, "ctlab_energy")
         col.prop(mat, "ctlab_ibl")
 
         impl = model_node.implementation(node)

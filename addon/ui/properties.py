@@ -37,6 +37,8 @@ VIEW_ITEMS = _items("view")
 G_ITEMS = _items("g_model")
 DIFFUSE_ITEMS = _items("diffuse_model")
 UNITS_ITEMS = _items("units")
+ENERGY_ITEMS = (("none", "Single Scattering", "The seed's model: single-scattering specular"),
+                ("compensated", "Compensated", "Kulla-Conty multiple scattering"))
 IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in OPTION_VALUES["ibl"])
 
 
@@ -83,6 +85,9 @@ def register() -> None:
                                              "The diffuse term")
     M.ctlab_units = _option_property("units", "Units", UNITS_ITEMS,
                                      "Physical, or Unity's (x pi on direct light)")
+    M.ctlab_energy = _option_property("energy", "Energy", ENERGY_ITEMS,
+                                      "Compensate the energy single scattering loses (Kulla "
+                                      "and Conty 2017)")
     M.ctlab_ibl = _option_property("ibl", "Indirect Light", IBL_ITEMS,
                                    "How the HDRI lights the surface")
     bpy.types.Scene.ctlab_sun = PointerProperty(
@@ -95,7 +100,7 @@ def register() -> None:
 
 
 NAMES = ((bpy.types.Material, ("ctlab_view", "ctlab_g_model", "ctlab_diffuse_model",
-                               "ctlab_units", "ctlab_ibl")),
+                               "ctlab_units", "ctlab_energy", "ctlab_ibl")),
          (bpy.types.Scene, ("ctlab_sun",)),
          (bpy.types.WindowManager, ("ctlab_job_progress", "ctlab_job_message",
                                     "ctlab_job_state")))
