@@ -13,7 +13,7 @@ from mathutils import Vector
 from addon.blender import materials, model_node, renderer, scene_builder
 from addon.core.compare import read_image
 from addon.core.hdri import write_float_exr
-from addon.core.model import MIN_ALPHA, VIEWS, ModelOptions
+from addon.core.model import ENERGY_MODES, G_MODELS, MIN_ALPHA, VIEWS, ModelOptions
 from addon.core.settings import MatrixSettings
 
 PEAK = 1.0e6
@@ -85,6 +85,9 @@ def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spik
     sun = next(o for o in scene.objects if o.type == 'LIGHT')
     for k, view in enumerate(VIEWS):
         model_node.set_option(node, "view", view)
+        # every G and energy option somewhere (a compensated lobe's factor reaches 3.3)
+        model_node.set_option(node, "g_model", G_MODELS[k % len(G_MODELS)])
+        model_node.set_option(node, "energy", ENERGY_MODES[(k // 3) % len(ENERGY_MODES)])
         if shader == "osl":
             node.inputs["Seed"].default_value = k
         d = rng.normal(size=3)
@@ -101,3 +104,32 @@ def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spik
         if view in BOUNDED:
             assert np.abs(img).max() <= BOUNDED[view] * (1 + 1e-4), \
                 f"{shader} view {view}: {np.abs(img).max()} > {BOUNDED[view]}"
+
+
+@pytest.mark.parametrize("shader", ["osl", "nodes"])
+def test_lights_at_their_limits_give_finite_views(tmp_path, shader):
+    """Lights a hostile scene might hold: a Point almost touching a sphere, a radius far larger
+    than the scene, a Spot of 1 degree with no blend, a Sun of angle pi, a tiny Area light and
+    an Area light seen from behind, all at once, every view: finite and not negative."""
+    from addon.core.lights import parse_light
+    lights = tuple(parse_light(item, "limits") for item in (
+        dict(type="POINT", energy=1e6, location=[0.0, -0.4201, 0.0]),
+        dict(type="POINT", energy=100.0, location=[1.0, -1.0, 1.0], shadow_soft_size=1e3),
+        dict(type="SPOT", energy=1e5, location=[0.0, -3.0, 0.0], rotation_euler=[1.5708, 0, 0],
+             spot_size=0.0175, spot_blend=0.0, shadow_soft_size=0.5),
+        dict(type="SUN", energy=10.0, rotation_euler=[0.3, 0.2, 0.1], angle=3.14159),
+        dict(type="AREA", energy=1e3, location=[0.5, -0.5, 0.5], size=1e-6),
+        dict(type="AREA", energy=1e3, location=[0.0, -2.0, 0.0], rotation_euler=[-1.5708, 0, 0],
+             shape="ELLIPSE", size=2.0, size_y=1e-3),
+    ))
+    s = MatrixSettings(rows=2, cols=2, width=32, height=32, shader=shader, lights=lights,
+                       model=ModelOptions(ibl="reference" if shader == "osl" else "split_sum",
+                                          env_samples=1, energy="compensated"))
+    from addon.jobs import pipeline
+    dirs = {view: tmp_path / view for view in VIEWS}
+    pipeline.render_views(s, dirs, 2, pixel_centres=True)
+    for view, folder in dirs.items():
+        img = read_image(folder / "render.exr")
+        assert np.isfinite(img).all(), f"{shader} view {view}: NaN/Inf"
+        if view != "normal":
+            assert img.min() >= 0.0, f"{shader} view {view}: negative {img.min()}"

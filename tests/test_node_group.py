@@ -16,8 +16,9 @@ CASES = {
     "smith_lambert_unity": (dict(g_model="smith_ggx_correlated", diffuse_model="lambert",
                                  units="unity", ibl="unity"),
                             ("NdotH", "G", "specular_brdf", "diffuse_brdf") + LIGHTING_VIEWS),
-    # Unity's G, and Kulla-Conty compensation in the direct and split-sum light
-    "unity_compensated": (dict(g_model="unity_smith_joint", energy="compensated"),
+    # Unity's G, energy compensation, the split-sum toward the dominant direction
+    "unity_compensated": (dict(g_model="unity_smith_joint", energy="compensated",
+                               ibl="split_sum_corrected"),
                           ("NdotH", "G", "specular_brdf") + LIGHTING_VIEWS),
 }
 # The least relative tolerance of the views with the multiple-scattering lobe: it reads E(n.l)

@@ -119,8 +119,8 @@ def get_option(node: bpy.types.Node, key: str) -> str:
     value = _input(node, key).default_value
     if implementation(node) == "osl":
         return value if value in values else values[0]
-    if key == "ibl":                        # the group's IBL Unity: 0 split_sum, 1 unity
-        return BAKED_IBL_MODES[int(bool(value))]
+    if key == "ibl":                        # the group's IBL Mode indexes BAKED_IBL_MODES
+        return BAKED_IBL_MODES[min(max(int(value), 0), len(BAKED_IBL_MODES) - 1)]
     return values[min(max(int(value), 0), len(values) - 1)]
 
 

@@ -23,11 +23,14 @@ ENERGY_MODES = ("none", "compensated")
 UNITS = ("physical", "unity")
 # reference: Monte Carlo against the HDRI (OSL only); split_sum (Karis 2013) and unity
 # (Unity's reflection-probe approximation) read the files baked by core.ibl_bake.
-IBL_MODES = ("reference", "split_sum", "unity")
-BAKED_IBL_MODES = ("split_sum", "unity")
+IBL_MODES = ("reference", "split_sum", "unity", "split_sum_corrected")
+BAKED_IBL_MODES = ("split_sum", "unity", "split_sum_corrected")
 IBL_LABELS = {"reference": ("Reference", "Monte Carlo integration against the HDRI"),
               "split_sum": ("Split-Sum", "Pre-filtered levels and the DFG table (baked, cached)"),
-              "unity": ("Unity", "Unity's reflection-probe approximation (baked, cached)")}
+              "unity": ("Unity", "Unity's reflection-probe approximation (baked, cached)"),
+              "split_sum_corrected": ("Split-Sum Corrected",
+                                      "The split-sum toward the lobe's dominant direction "
+                                      "(Lagarde and de Rousiers 2014; baked, cached)")}
 
 # --- Views (docs/model.md "Views"), in this order everywhere (the node group's View index).
 LIGHTING_VIEWS = ("full", "direct", "indirect", "direct_diffuse", "direct_specular",
@@ -99,9 +102,10 @@ OPTIONS = (
     Input("energy", "Energy", "INT", 0,
           "0: single scattering (the seed's model); 1: Kulla-Conty multiple scattering",
           osl="energy", group="Energy Compensated", values=ENERGY_MODES),
-    # the group has no reference mode: IBL Unity 0 is split_sum, 1 unity
-    Input("ibl", "IBL", "INT", 0, "0: split-sum; 1: Unity's approximation",
-          osl="ibl", group="IBL Unity", values=IBL_MODES),
+    # the group has no reference mode: IBL Mode indexes BAKED_IBL_MODES
+    Input("ibl", "IBL", "INT", 0, "0: split-sum; 1: Unity's approximation; 2: split-sum "
+          "toward the dominant direction", osl="ibl", group="IBL Mode",
+          max=len(BAKED_IBL_MODES) - 1, values=IBL_MODES),
 )
 
 # The key light and the world, as drivers and the sync handler keep them (light_sync).

@@ -215,9 +215,12 @@ def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
         load_hdri(hdri)
         ct = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="osl",
                                        ibl="reference", view="full"))
+        # with the model's energy compensated, against Principled's own multiple scattering
+        multiple = base.model.energy == "compensated"
         pr = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="principled",
                                        ibl="reference", view="full",
-                                       principled_distribution="GGX"))
+                                       principled_distribution="MULTI_GGX" if multiple
+                                       else "GGX"))
         jobs.append((name if name and len(hdris) == 1 else Path(hdri).stem, ct, pr))
     check_writable(out)
     _forget_report(out)
