@@ -36,6 +36,7 @@ CLI_CASES = {
     "view-unknown": (RENDER + ["--view", "Q"], "unknown view 'Q'"),
     "g-unknown": (RENDER + ["--g", "beckmann"], "unknown G 'beckmann'"),
     "ibl-unknown": (RENDER + ["--ibl", "probe"], "unknown IBL 'probe'"),
+    "energy-unknown": (RENDER + ["--energy", "more"], "unknown energy 'more'"),
     "ibl-nodes-reference": (["render", "--shader", "nodes", "--ibl", "reference"],
                             "the node group has no 'reference' indirect light"),
     "shader-unknown": (["render", "--shader", "arnold"], "invalid choice: 'arnold'"),

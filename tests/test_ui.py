@@ -364,6 +364,12 @@ def test_panels_draw_for_model_other_and_no_material(addon):
     assert ("prop", "ctlab_view") in model_calls and ("prop", "ctlab_ibl") in model_calls
     assert ("operator", "ctlab.switch_implementation") in model_calls
     assert any("Roughness 0.500" in c[1] for c in model_calls if c[0] == "label")
+    assert ("prop", "ctlab_energy") in model_calls
+    # the startup file's Point light is shaded, unshadowed by the node group (it says so)
+    labels = [c[1] for c in model_calls if c[0] == "label"]
+    assert "Other lights: 1 shaded (of 8 slots)" in labels and "  Light" in labels
+    assert any("node group's lights cast no shadows" in t for t in labels)
+    assert not any("cast no shadows" in c[1] for c in seen["osl", "CTLAB_PT_material"])
     assert ("operator", "ctlab.convert_to_cook_torrance") in seen["principled", "CTLAB_PT_material"]
     assert ("operator", "ctlab.new_material") in seen["none", "CTLAB_PT_material"]
     scene.render.engine = 'CYCLES'

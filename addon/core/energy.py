@@ -68,10 +68,10 @@ def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list
 _COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d")
 
 
-def svg_plot(curves_by_g: dict, width: int = 620, height: int = 320) -> str:
+def svg_plot(curves_by_g: dict, width: int = 710, height: int = 320) -> str:
     """Directional albedo against the view angle: one colour per smoothness, solid for the
-    first G model, dashed for the second. A standalone <svg>."""
-    left, right, top, bottom = 48, 210, 12, 36      # the legend (G names) on the right
+    first curve set, dashed for the second, dotted for the third. A standalone <svg>."""
+    left, right, top, bottom = 48, 300, 12, 36      # the legend (curve sets) on the right
     pw, ph = width - left - right, height - top - bottom
     y_max = 1.1
 
@@ -92,8 +92,9 @@ def svg_plot(curves_by_g: dict, width: int = 620, height: int = 320) -> str:
     parts.append(f"<text x='12' y='{top + ph / 2}' transform='rotate(-90 12 {top + ph / 2})' "
                  "text-anchor='middle'>directional albedo</text>")
     legend_y = top + 10
+    dashes = ("", " stroke-dasharray='5 3'", " stroke-dasharray='1 2'")
     for k, (g_model, curves) in enumerate(curves_by_g.items()):
-        dash = "" if k == 0 else " stroke-dasharray='5 3'"
+        dash = dashes[k % len(dashes)]
         for i, curve in enumerate(curves):
             colour = _COLOURS[i % len(_COLOURS)]
             points = " ".join("%.1f,%.1f" % xy(t, e) for t, e in
@@ -107,10 +108,10 @@ def svg_plot(curves_by_g: dict, width: int = 620, height: int = 320) -> str:
                              f"{curve['smoothness']:.1f}</text>")
                 legend_y += 15
     for k, g_model in enumerate(curves_by_g):
-        dash = "" if k == 0 else " stroke-dasharray='5 3'"
+        dash = dashes[k % len(dashes)]
         parts.append(f"<line x1='{left + pw + 10}' y1='{legend_y + 6}' x2='{left + pw + 30}' "
                      f"y2='{legend_y + 6}' stroke='#333'{dash}/><text x='{left + pw + 36}' "
-                     f"y='{legend_y + 10}'>G {html.escape(g_model)}</text>")
+                     f"y='{legend_y + 10}'>{html.escape(g_model)}</text>")
         legend_y += 15
     parts.append("</svg>")
     return "".join(parts)

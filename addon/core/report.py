@@ -99,34 +99,39 @@ roughness (light that would scatter again between microfacets is dropped). Smith
 more than the Cook-Torrance (V-cavity) G, min(1, 2(n.h)(n.v)/(v.h), 2(n.h)(n.l)/(v.h)), whose
 masking is weaker at grazing views (Heitz 2014, section 5): with this model's GGX D the
 Cook-Torrance G keeps more energy on rough surfaces, most at grazing views, and both stay
-below 1 (brute-force quadrature of the model's formulas agrees; tests/test_energy.py). Solid:
-the first G; dashed: the second. Curves are measured from the renders (pixels binned by
+below 1 (brute-force quadrature of the model's formulas agrees; tests/test_energy.py). With
+energy compensated (Turquin 2019's albedo scaling with Kulla and Conty's Fresnel term, as
+Cycles compensates Principled's GGX) the lobe reflects everything: the dotted curves sit at 1.
+Solid: the first set; dashed: the second; dotted: the third. Curves are measured from the renders (pixels binned by
 view angle, n.v from each pixel's place on the sphere).</p>"""
 
 
 def attribution_table(steps) -> str:
-    """``steps``: (label, metrics) in switch order, the first the seed model. Per cell, the
-    mean CIEDE2000 left after each switch, and the overall means."""
+    """``steps``: (label, metrics[, the step it follows]) in switch order, the first the seed
+    model; a step follows the one before it unless it says which. Per cell, the mean CIEDE2000
+    left after each switch (and its change from the step it follows), and the overall means."""
     cells = steps[0][1]["cells"]
+    after = [step[2] if len(step) > 2 else k - 1 for k, step in enumerate(steps)]
     head = ("<tr><th>metallic</th><th>smoothness</th>" +
-            "".join(f"<th>{html.escape(label)}</th>" for label, _ in steps) + "</tr>")
+            "".join(f"<th>{html.escape(step[0])}</th>" for step in steps) + "</tr>")
+
+    def row(values):
+        return "".join(f"<td>{v:.2f}" + (f" ({v - values[after[k]]:+.2f})" if k else "") +
+                       "</td>" for k, v in enumerate(values))
     rows = []
     for i, c in enumerate(cells):
-        values = [m["cells"][i]["ciede2000_mean"] for _, m in steps]
-        rows.append(f"<tr><td>{c['metallic']:.2f}</td><td>{c['smoothness']:.2f}</td>" +
-                    "".join(f"<td>{v:.2f}" + (f" ({v - values[k - 1]:+.2f})" if k else "") +
-                            "</td>" for k, v in enumerate(values)) + "</tr>")
-    overall = [m["overall"]["ciede2000_mean"] for _, m in steps]
-    rows.append("<tr class='all'><td colspan=2>all cells</td>" +
-                "".join(f"<td>{v:.2f}" + (f" ({v - overall[k - 1]:+.2f})" if k else "") +
-                        "</td>" for k, v in enumerate(overall)) + "</tr>")
+        values = [step[1]["cells"][i]["ciede2000_mean"] for step in steps]
+        rows.append(f"<tr><td>{c['metallic']:.2f}</td><td>{c['smoothness']:.2f}</td>"
+                    + row(values) + "</tr>")
+    overall = [step[1]["overall"]["ciede2000_mean"] for step in steps]
+    rows.append("<tr class='all'><td colspan=2>all cells</td>" + row(overall) + "</tr>")
     return f"<table>{head}{''.join(rows)}</table>"
 
 
 def furnace_section(furnace: dict) -> str:
     from .energy import mean_albedo, svg_plot
     head = "<tr><th>smoothness</th>" + "".join(
-        f"<th>{html.escape(g)} G: mean</th><th>max</th>" for g in furnace) + "</tr>"
+        f"<th>{html.escape(g)}: mean</th><th>max</th>" for g in furnace) + "</tr>"
     rows = []
     curves = list(furnace.values())
     for i, c in enumerate(curves[0]):
@@ -197,7 +202,7 @@ def write_report(out_dir: Path, comparisons, scene: dict, timings: dict, attribu
     ``comparisons``: (render folder, reference folder, comparison folder, render label,
     reference label, metrics) tuples; the first is the model against Principled BSDF.
     ``attribution``: (switch label, metrics against Principled) in switch order;
-    ``furnace``: {G model: energy.directional_albedo curves}."""
+    ``furnace``: {curve set label: energy.directional_albedo curves}."""
     params = {k: scene[k] for k in ("rows", "cols", "width", "height", "samples", "hdri",
                                     "hdri_strength", "hdri_rotation_deg", "sun", "model",
                                     "principled_distribution", "blender") if k in scene}

@@ -299,7 +299,8 @@ def cmd_matrix(args) -> None:
     psnr = result["comparisons"]["compare"]["overall"]["psnr_db"]
     say(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
         f"(PSNR {'-' if psnr is None else f'{psnr:.2f}'} dB); split-sum "
-        f"against the reference {de['compare_split_sum']:.2f}, Unity {de['compare_unity']:.2f}; "
+        f"against the reference {de['compare_split_sum']:.2f} (corrected "
+        f"{de['compare_split_sum_corrected']:.2f}), Unity {de['compare_unity']:.2f}; "
         f"node group against OSL {de['compare_nodes']:.3f}; open {result['report']}")
 
 

@@ -92,37 +92,51 @@ def render_one(settings: MatrixSettings, out_dir: Path, samples: int, **kw) -> d
 
 SMITH = {"g_model": "smith_ggx_correlated"}
 # The matrix job's renders: (folder, label, shader, IBL mode, settings changed from the
-# base's). The last three are the intermediate configurations of the attribution.
+# base's). The last four are the configurations of the attribution.
 MATRIX_RENDERS = (
     ("cook_torrance", "Cook-Torrance (OSL, reference IBL)", "osl", "reference", {}),
     ("principled", "Principled BSDF", "principled", "reference", {}),
     ("split_sum", "Cook-Torrance (OSL, split-sum IBL)", "osl", "split_sum", {}),
     ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity", {}),
+    ("split_sum_corrected", "Cook-Torrance (OSL, split-sum toward the dominant direction)",
+     "osl", "split_sum_corrected", {}),
     ("nodes", "Cook-Torrance (node group, split-sum IBL)", "nodes", "split_sum", {}),
     ("attr_smith", "Cook-Torrance with Smith G", "osl", "reference", SMITH),
     ("attr_smith_lambert", "Cook-Torrance with Smith G and Lambert diffuse", "osl", "reference",
      dict(SMITH, diffuse_model="lambert")),
     ("attr_principled_ggx", "Principled BSDF (single-scatter GGX)", "principled", "reference",
-     {"principled_distribution": "GGX"}))
+     {"principled_distribution": "GGX"}),
+    ("attr_compensated", "Cook-Torrance with Smith G, Lambert diffuse and energy compensation",
+     "osl", "reference", dict(SMITH, diffuse_model="lambert", energy="compensated")))
 # Its comparisons: (folder, render, against). The model against Principled; the baked IBL
 # modes against the reference integration (the accuracy study of the split-sum); the node
 # group against the OSL shader in the same mode (parity); the attribution's steps.
 MATRIX_COMPARISONS = (("compare", "cook_torrance", "principled"),
                       ("compare_split_sum", "split_sum", "cook_torrance"),
                       ("compare_unity", "unity", "cook_torrance"),
+                      ("compare_split_sum_corrected", "split_sum_corrected", "cook_torrance"),
                       ("compare_nodes", "nodes", "split_sum"),
                       ("compare_attr_smith", "attr_smith", "principled"),
                       ("compare_attr_smith_lambert", "attr_smith_lambert", "principled"),
-                      ("compare_attr_ggx", "attr_smith_lambert", "attr_principled_ggx"))
+                      ("compare_attr_ggx", "attr_smith_lambert", "attr_principled_ggx"),
+                      ("compare_attr_compensated", "attr_compensated", "principled"))
 # The attribution: the error against Principled after each switch (comparison folder, the
-# switch it follows).
+# switch; the step it follows, where not the one before).
 ATTRIBUTION = (("compare", "seed model"),
                ("compare_attr_smith", "G: Cook-Torrance to Smith"),
                ("compare_attr_smith_lambert", "diffuse: Disney to Lambert"),
-               ("compare_attr_ggx", "Principled: multiscatter to single-scatter GGX"))
-# The white furnace (core/energy.py): (folder, G model).
-FURNACE_RENDERS = (("furnace_cook_torrance", "cook_torrance"),
-                   ("furnace_smith", "smith_ggx_correlated"))
+               ("compare_attr_ggx", "Principled: multiscatter to single-scatter GGX"),
+               ("compare_attr_compensated",
+                "or instead the model: energy compensated (against multiscatter Principled)",
+                2))
+# The white furnace (core/energy.py): (folder, G model, energy).
+FURNACE_RENDERS = (("furnace_cook_torrance", "cook_torrance", "none"),
+                   ("furnace_smith", "smith_ggx_correlated", "none"),
+                   ("furnace_smith_compensated", "smith_ggx_correlated", "compensated"))
+
+
+def furnace_label(g_model: str, energy_mode: str) -> str:
+    return f"{g_model} G" + (", compensated" if energy_mode != "none" else "")
 
 
 def _forget_report(out: Path) -> None:
@@ -137,9 +151,9 @@ def matrix_settings(base: MatrixSettings) -> dict:
     for folder, _, shader, ibl, overrides in MATRIX_RENDERS:
         settings[folder] = with_overrides(base, dict(overrides, shader=shader, ibl=ibl,
                                                      view="full"))
-    for folder, g_model in FURNACE_RENDERS:
+    for folder, g_model, energy_mode in FURNACE_RENDERS:
         settings[folder] = energy.furnace_settings(g_model, base.model.env_samples,
-                                                   base.model.seed)
+                                                   base.model.seed, energy_mode)
     return settings
 
 
@@ -156,7 +170,8 @@ def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | N
     steps = len(settings) + 2
     timings, scenes = {}, {}
     labels = {folder: label for folder, label, *_ in MATRIX_RENDERS}
-    labels.update({folder: f"White furnace, {g} G" for folder, g in FURNACE_RENDERS})
+    labels.update({folder: f"White furnace, {furnace_label(g, e)}"
+                   for folder, g, e in FURNACE_RENDERS})
     for i, (folder, s) in enumerate(settings.items()):
         events.check()
         events.progress(i + 1, steps, f"{labels[folder]}: grid {s.rows}x{s.cols}, "
@@ -168,14 +183,15 @@ def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | N
     events.progress(steps - 1, steps, "comparing")
     results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
                for cmp_dir, a, b in MATRIX_COMPARISONS}
-    furnace = {g: energy.directional_albedo(read_image(out / folder / "render.exr"),
-                                            scenes[folder])
-               for folder, g in FURNACE_RENDERS}
+    furnace = {furnace_label(g, e): energy.directional_albedo(
+        read_image(out / folder / "render.exr"), scenes[folder])
+        for folder, g, e in FURNACE_RENDERS}
     events.progress(steps, steps, "writing the report")
     report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
-                                for cmp_dir, a, b in MATRIX_COMPARISONS[:4]],
+                                for cmp_dir, a, b in MATRIX_COMPARISONS[:5]],
                           scenes["cook_torrance"], timings,
-                          attribution=[(label, results[c]) for c, label in ATTRIBUTION],
+                          attribution=[(step[1], results[step[0]], *step[2:])
+                                       for step in ATTRIBUTION],
                           furnace=furnace)
     return {"report": report, "comparisons": results}
 
