@@ -94,11 +94,16 @@ CLI_CASES = {
     "lights-vector-shape": (RENDER + ["--lights", "@LIGHTS:shape"],
                             "location must be a list of 3 numbers"),
     "lights-nonfinite": (RENDER + ["--lights", "@LIGHTS:nan"], "energy must be finite"),
-    "lights-negative": (RENDER + ["--lights", "@LIGHTS:negative"], "energy -5 out of range"),
+    "lights-negative": (RENDER + ["--lights", "@LIGHTS:negative"], "energy -5.0 out of range"),
     "lights-area-zero": (RENDER + ["--lights", "@LIGHTS:area-zero"],
                          "an AREA light needs a size above 0"),
     "lights-shape-unknown": (RENDER + ["--lights", "@LIGHTS:area-shape"],
                              'unknown shape "TRIANGLE"'),
+    "lights-scale-negative": (RENDER + ["--lights", "@LIGHTS:mirrored"],
+                              "scale must be positive"),
+    "lights-huge-number": (RENDER + ["--lights", "@LIGHTS:huge"], "energy out of range"),
+    "lights-too-bright": (RENDER + ["--lights", "@LIGHTS:bright"],
+                          "the model takes at most 1e+09"),
 }
 LIGHTS_FILES = {
     "not-json": '[{"type": "SUN",',
@@ -113,6 +118,9 @@ LIGHTS_FILES = {
     "negative": '[{"type": "POINT", "energy": -5}]',
     "area-zero": '[{"type": "AREA", "energy": 5, "size": 0}]',
     "area-shape": '[{"type": "AREA", "energy": 5, "shape": "TRIANGLE"}]',
+    "mirrored": '[{"type": "SPOT", "energy": 5, "scale": [1, 1, -1]}]',
+    "huge": '[{"type": "POINT", "energy": 1' + "0" * 400 + '}]',
+    "bright": '[{"type": "POINT", "energy": 1e6, "exposure": 12}]',
 }
 OPERATOR_CASES = ("op-matrix-hdri", "op-bake-hdri", "op-convert-not-principled",
                   "op-convert-not-model", "op-convert-no-material", "op-comparison-running")

@@ -44,7 +44,9 @@ def test_matrix_main_job_writes_a_report(tmp_path):
     out = tmp_path / "m"
     p = run("matrix", "--out", out, "--grid", "2x2", "--size", "48", "--samples", "4")
     assert p.returncode == 0, p.stderr + p.stdout
-    assert "[1/12]" in p.stdout and "[12/12]" in p.stdout
+    from addon.jobs.pipeline import FURNACE_RENDERS, MATRIX_RENDERS
+    steps = len(MATRIX_RENDERS) + len(FURNACE_RENDERS) + 2      # and comparing, the report
+    assert f"[1/{steps}]" in p.stdout and f"[{steps}/{steps}]" in p.stdout
     for f in ("report.html", "cook_torrance/render.png", "principled/render.png",
               "compare/diff.png", "compare/metrics.json"):
         assert (out / f).is_file(), f
@@ -59,11 +61,13 @@ def test_matrix_main_job_writes_a_report(tmp_path):
         cells = json.loads((out / f"compare_{study}" / "metrics.json").read_text())["cells"]
         assert all(np.isfinite(c["rel_luminance_error"]) for c in cells)
     # the attribution: the error against Principled after each switch, per cell
-    for cmp_dir in ("compare_attr_smith", "compare_attr_smith_lambert", "compare_attr_ggx"):
+    for cmp_dir in ("compare_attr_smith", "compare_attr_smith_lambert", "compare_attr_ggx",
+                    "compare_attr_compensated", "compare_split_sum_corrected"):
         assert len(json.loads((out / cmp_dir / "metrics.json").read_text())["cells"]) == 4
     assert "Attribution" in html and "G: Cook-Torrance to Smith" in html
-    # the white furnace: two renders and their plot
-    assert "Energy: white furnace" in html and html.count("<polyline") == 12
+    assert "energy compensated (against multiscatter Principled)" in html
+    # the white furnace: three renders (each G, Smith's compensated), six roughnesses each
+    assert "Energy: white furnace" in html and html.count("<polyline") == 18
     assert not list(out.rglob("*partial*"))
 
 

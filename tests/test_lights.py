@@ -4,7 +4,6 @@ Point, Spot and Sun; Lambert's polygon formula for an Area light), against Princ
 rendered by Cycles under the same lights, between the two implementations, and through the
 drivers that keep the slots in step with light objects."""
 
-import json
 import math
 
 import bpy
@@ -305,9 +304,13 @@ def test_drivers_keep_every_slot_as_core_lights_computes_it(impl):
 
 @pytest.mark.quick
 def test_the_lights_files_in_docs_are_valid_and_ranked_suns_first():
-    for path in sorted(LIGHTS_DIR.glob("*.json")):
-        lights = core_lights.read_lights(path)
-        assert lights and all(json.loads(path.read_text()))
+    kinds = {path.stem: [(x.type, x.get("shape") if x.type == "AREA" else None)
+                         for x in core_lights.read_lights(path)]
+             for path in sorted(LIGHTS_DIR.glob("*.json"))}
+    for name in ("sun", "point", "spot", "area"):
+        assert [k for k, _ in kinds[name]] == [name.upper()], kinds[name]
+    assert len(kinds["mixed"]) == 8 and {k for k, _ in kinds["mixed"]} == set(core_lights.TYPES)
+    assert {s for k, s in kinds["mixed"] if k == "AREA"} == set(core_lights.SHAPES)
     ranked = core_lights.ranked(list(_file("mixed")))
     assert ranked[0].type == "SUN"
     powers = [sum(w * c for w, c in zip(LUM, light.power())) for light in ranked[1:]]

@@ -113,9 +113,9 @@ def test_lights_at_their_limits_give_finite_views(tmp_path, shader):
     an Area light seen from behind, all at once, every view: finite and not negative."""
     from addon.core.lights import parse_light
     lights = tuple(parse_light(item, "limits") for item in (
-        dict(type="POINT", energy=1e6, location=[0.0, -0.4201, 0.0]),
+        dict(type="POINT", energy=1e6, location=[-0.5, -0.4201, 0.5]),    # 0.1 mm off a sphere
         dict(type="POINT", energy=100.0, location=[1.0, -1.0, 1.0], shadow_soft_size=1e3),
-        dict(type="SPOT", energy=1e5, location=[0.0, -3.0, 0.0], rotation_euler=[1.5708, 0, 0],
+        dict(type="SPOT", energy=1e5, location=[0.5, -3.0, -0.5], rotation_euler=[1.5708, 0, 0],
              spot_size=0.0175, spot_blend=0.0, shadow_soft_size=0.5),
         dict(type="SUN", energy=10.0, rotation_euler=[0.3, 0.2, 0.1], angle=3.14159),
         dict(type="AREA", energy=1e3, location=[0.5, -0.5, 0.5], size=1e-6),

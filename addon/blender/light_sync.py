@@ -107,9 +107,10 @@ def update_environment(node: bpy.types.Node, scene: bpy.types.Scene,
 
 def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=True,
                   env: Environment | None = None) -> None:
-    """Drive a model material's key light from the key Sun and its world inputs from the
-    world (replacing earlier drivers); with ``environment``, also point it at the HDRI
-    (``env``: the sync pass's shared Environment)."""
+    """Drive a model material's key light from the key Sun, its light slots from the scene's
+    other lights (scene_lights) and its world inputs from the world (replacing earlier
+    drivers); with ``environment``, also point it at the HDRI (``env``: the sync pass's shared
+    Environment)."""
     node = model_node.find(mat)
     if node is None:
         return

@@ -672,7 +672,7 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
     would reset the inputs and links of every material using it), else built."""
     import hashlib
     digest = hashlib.sha256(DESCRIPTION.read_bytes() + repr(GROUP_INPUTS).encode()
-                            ).hexdigest()[:16]
+                            + Path(__file__).read_bytes()).hexdigest()[:16]
     group = bpy.data.node_groups.get(load_description()["group"]["name"])
     if group is not None and group.get(TAG) and group.get(SOURCE_HASH) == digest:
         return group

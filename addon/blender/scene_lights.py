@@ -62,7 +62,7 @@ def _rendering_collections(scene: bpy.types.Scene) -> set:
         hidden = hidden or layer.collection.hide_render
         if layer.exclude or hidden:
             return
-        found.add(layer.collection.name_full)
+        found.add(layer.collection)
         for child in layer.children:
             walk(child, hidden)
     if scene.view_layers:
@@ -76,7 +76,7 @@ def renders(obj: bpy.types.Object, scene: bpy.types.Scene, collections=None) -> 
     if obj.hide_render:
         return False
     collections = _rendering_collections(scene) if collections is None else collections
-    return any(c.name_full in collections for c in obj.users_collection)
+    return any(c in collections for c in obj.users_collection)
 
 
 def scene_lights(scene: bpy.types.Scene, exclude=None) -> list:
@@ -105,6 +105,8 @@ def unsupported(obj: bpy.types.Object) -> list:
              and (key != "use_soft_falloff" or data.type in ('POINT', 'SPOT'))]
     if data.type == 'AREA' and abs(getattr(data, "spread", 3.14159265) - 3.14159265) > 1e-4:
         found.append("Spread below 180°")
+    if obj.matrix_world.determinant() < 0.0:
+        found.append("a negative scale")
     return found
 
 

@@ -23,6 +23,7 @@ from .model import LIGHT_SLOTS, LIGHT_TYPE_CODES
 TYPES = ("SUN", "POINT", "SPOT", "AREA")
 SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 MAX_VALUE = 1e6      # the largest distance, size or power a file may give
+MAX_POWER = 1e9      # the largest colour x energy x 2^exposure (the slot's Color input)
 
 # The keys a light of each type takes (Blender's property names), with
 # bpy.data.lights.new()'s defaults; energy is required.
@@ -119,7 +120,11 @@ def slot_values(light: Light) -> dict:
 
 def _number(where, key, value, lo=-MAX_VALUE, hi=MAX_VALUE) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise UserError(f"{where}: {key} must be a number, not {json.dumps(value)}")
+        raise UserError(f"{where}: {key} must be a number, not {json.dumps(value)[:40]}")
+    try:
+        value = float(value)                 # a JSON integer of 400 digits overflows here
+    except OverflowError:
+        raise UserError(f"{where}: {key} out of range; use {lo:g} to {hi:g}") from None
     if not math.isfinite(value):
         raise UserError(f"{where}: {key} must be finite, not {value}")
     if not lo <= value <= hi:
@@ -171,17 +176,27 @@ def parse_light(item, where: str) -> Light:
             extra[key] = _number(where, key, item[key], 0.0, math.pi)
         else:
             extra[key] = _number(where, key, item[key], 0.0)
+    scale = _vector(where, "scale", item.get("scale", [1, 1, 1]))
+    if min(scale) <= 0.0:
+        raise UserError(f"{where}: scale must be positive, not {list(scale)} (a mirrored "
+                        "light is not followed)")
     light = Light(type=kind, name=name,
                   energy=_number(where, "energy", item["energy"], 0.0),
                   location=_vector(where, "location", item.get("location", [0, 0, 0])),
                   rotation_euler=_vector(where, "rotation_euler",
                                          item.get("rotation_euler", [0, 0, 0]), -1e3, 1e3),
-                  scale=_vector(where, "scale", item.get("scale", [1, 1, 1])),
+                  scale=scale,
                   color=_vector(where, "color", item.get("color", [1, 1, 1]), 0.0),
                   exposure=_number(where, "exposure", item.get("exposure", 0.0), -32.0, 32.0),
                   use_shadow=use_shadow, extra=extra)
     if kind == "AREA" and min(area_size(light)) <= 0.0:
         raise UserError(f"{where}: an AREA light needs a size above 0 (size, size_y, scale)")
+    if max(light.power()) > MAX_POWER:
+        raise UserError(f"{where}: colour x energy x 2^exposure is {max(light.power()):g}; "
+                        f"the model takes at most {MAX_POWER:g}")
+    if kind == "AREA" and max(area_size(light)) > MAX_VALUE:
+        raise UserError(f"{where}: the AREA light is {max(area_size(light)):g} m wide "
+                        f"(size x scale); the model takes at most {MAX_VALUE:g}")
     return light
 
 
@@ -197,6 +212,9 @@ def read_lights(path) -> list[Light]:
     except json.JSONDecodeError as exc:
         raise UserError(f"lights file {path} is not JSON: {exc.msg} at line {exc.lineno}") \
             from None
+    except (ValueError, RecursionError) as exc:      # 4300-digit integers, deep nesting
+        raise UserError(f"lights file {path} cannot be read as lights: "
+                        f"{str(exc).splitlines()[0][:80] or type(exc).__name__}") from None
     if not isinstance(data, list) or not data:
         raise UserError(f"lights file {path}: expected a non-empty list of lights")
     if len(data) > LIGHT_SLOTS:

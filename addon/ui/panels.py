@@ -136,7 +136,8 @@ class CTLAB_PT_material(bpy.types.Panel):
                                                if problems else ""),
                       icon='ERROR' if problems else 'DOT')
         if unused:
-            box.label(text=f"Not shaded (more lights than slots; the dimmest): "
+            box.label(text=f"Not shaded (more lights than slots; the last by Suns first, "
+                           f"then power): "
                            f"{', '.join(o.name for o in unused)}", icon='ERROR')
         if impl == "nodes" and (used or sun):
             box.label(text="The node group's lights cast no shadows (it cannot trace)",
