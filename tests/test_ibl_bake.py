@@ -296,3 +296,35 @@ def test_the_shipped_dfg_tables_are_what_integrating_them_gives(tmp_path, monkey
     folder = ibl_bake.bake(path)
     np.testing.assert_allclose(read_image(folder / ibl_bake.dfg_file("cook_torrance")),
                                ibl_bake.shipped_dfg("cook_torrance"), rtol=1e-7)
+
+
+@pytest.mark.parametrize("g_model", ["cook_torrance", "smith_ggx_correlated"])
+def test_the_dominant_direction_is_the_lobes_centroid(g_model):
+    """The corrected split-sum's t (channel 2 of ms_<G>): normalize(mix(n, r, t)) must point
+    at the centroid of f_s (n.l), here found by brute-force quadrature over l of the reference
+    model's f_s (white metal, F = 1). Smith's t at full roughness is 0 (the centroid is n), as
+    Lagarde and de Rousiers' fit says; the Cook-Torrance G's is not."""
+    from reference_model import terms
+    table = ibl_bake.dominant_table(g_model)
+    n_theta, n_phi = 600, 300
+    theta = (np.arange(n_theta) + 0.5) / n_theta * (np.pi / 2)
+    phi = (np.arange(n_phi) + 0.5) / n_phi * 2 * np.pi
+    T, P = np.meshgrid(theta, phi, indexing="ij")
+    l = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1)
+    n = np.broadcast_to(np.array([0.0, 0.0, 1.0]), l.shape)
+    for j in (32, 48, 63):                       # pr = j / 63
+        pr = j / 63
+        for i in (19, 38, 57):                   # n.v = i / 63
+            mu = i / 63
+            v = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
+            fs = terms(n, v, l, np.ones(l.shape), np.ones(T.shape), np.full(T.shape, 1 - pr),
+                       g_model=g_model)["specular_brdf"][..., 0]
+            w = fs * np.cos(T) * np.sin(T)
+            cx, cz = np.sum(w * l[..., 0]), np.sum(w * l[..., 2])
+            tan_c = -cx / cz
+            want = tan_c / (v[0] + tan_c * (1 - mu))
+            assert abs(table[j, i] - np.clip(want, 0, 1)) < 0.02, (pr, mu, table[j, i], want)
+    if g_model == "smith_ggx_correlated":
+        assert table[63, :-1].max() < 0.02       # at n.v = 1, r = n: any t, 1 by convention
+    else:
+        assert table[63, 32] > 0.15

@@ -135,9 +135,11 @@ def test_the_world_strength_scales_every_indirect_mode_exactly(tmp_path):
 
 
 def test_the_dominant_direction_brings_rough_metals_toward_the_reference(tmp_path):
-    """--ibl split_sum_corrected (Lagarde and de Rousiers 2014): under forest.exr, the rough
-    metal's indirect light, which the plain split-sum darkens by about 20% against the
-    reference integration, comes within 10%, and every sphere is closer than 12%."""
+    """--ibl split_sum_corrected (the dominant direction of Lagarde and de Rousiers 2014, with t
+    the model's lobe centroid): under forest.exr, the rough metal's indirect light, which the
+    plain split-sum darkens by about 20% against the reference integration, comes within 5%,
+    and every sphere within 6% (with Frostbite's fit for Smith's G instead of this G's t, the
+    rough Cook-Torrance metal overshot by 8%)."""
     common = dict(grid=(3, 3), size=96, samples=32, view="indirect")
     imgs = {}
     for ibl in ("reference", "split_sum", "split_sum_corrected"):
@@ -147,7 +149,7 @@ def test_the_dominant_direction_brings_rough_metals_toward_the_reference(tmp_pat
         m = sphere_pixels(scene, cell)
         ref, plain, corrected = ((imgs[k][m][:, :3] @ lum).mean() for k in
                                  ("reference", "split_sum", "split_sum_corrected"))
-        assert abs(corrected / ref - 1) < 0.12, (cell["row"], cell["col"], corrected / ref)
+        assert abs(corrected / ref - 1) < 0.06, (cell["row"], cell["col"], corrected / ref)
         if cell["metallic"] == 1.0 and cell["smoothness"] == 0.0:
             assert plain / ref < 0.88, plain / ref
-            assert abs(corrected / ref - 1) < 0.10, corrected / ref
+            assert abs(corrected / ref - 1) < 0.05, corrected / ref

@@ -43,7 +43,7 @@ from .files import DATA_DIR, check_writable, copy_file, refuse_overwrite, write_
 from .hdri import file_hash, load_hdri, write_float_exr
 from .model import G_MODELS, MIN_ALPHA
 
-VERSION = 4      # 4: the multiple-scattering tables (ms_<G>.exr)
+VERSION = 5      # 4: the multiple-scattering tables (ms_<G>.exr); 5: their dominant direction
 LEVEL_COUNT = 7
 LEVEL_ROUGHNESS = tuple(m / (LEVEL_COUNT - 1) for m in range(LEVEL_COUNT))
 # Width of each pre-filtered level (0: the source's own); the lobe's half-width spans >= 3 texels.
@@ -178,7 +178,8 @@ def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) ->
 # ---------------------------------------------------------------------------------------
 # The DFG table (independent of the HDRI: cached once per model version)
 
-def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int):
+def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int,
+                         centroid: bool = False):
     """A(n.v), B(n.v) at one perceptual roughness: integral f_s (n.l) dl = F0 A + B.
 
     Half vectors h follow D(h)(n.h) (Walter et al. 2007, eq. 35-36: tan^2 theta_h =
@@ -212,6 +213,11 @@ def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi:
         G = np.minimum(1.0, 2.0 * nh * np.minimum(nv, nl) / np.maximum(vh, 1e-12))
     weight = G * vh / (nh * nv) * du * phi_max / (np.pi * nu * nphi)
     fc = (1.0 - vh) ** 5
+    if centroid:
+        # the lobe's f_s (n.l) centroid (F = 1) in the plane of n and v: x toward the mirror
+        # side, z along n (l = 2 (v.h) h - v; the lobe is symmetric in y)
+        lx = 2.0 * vh * sh * np.cos(phi) - sv
+        return np.sum(weight * lx, axis=(1, 2)), np.sum(weight * nl, axis=(1, 2))
     return np.sum(weight * (1.0 - fc), axis=(1, 2)), np.sum(weight * fc, axis=(1, 2))
 
 
@@ -279,17 +285,38 @@ def dfg_values(g_model: str) -> np.ndarray:
     return dfg_table(g_model) if table is None else table
 
 
-def ms_table(dfg: np.ndarray) -> np.ndarray:
+def dominant_table(g_model: str, size: int = DFG_SIZE) -> np.ndarray:
+    """(size, size): per (n.v, pr) on the DFG table's axes, the t for which
+    normalize(mix(n, r, t)) points at the centroid of the lobe f_s (n.l) (F = 1) of this D and
+    G: the split-sum's dominant direction computed for the model, where Lagarde and de Rousiers
+    (2014, listing 22) fit t = (1 - a)(sqrt(1 - a) + a) to Smith's G. With the centroid at
+    angle c from n and r at angle theta_v: tan c = t sin / (1 - t + t cos), so
+    t = tan c / (sin theta_v + tan c (1 - cos theta_v))."""
+    x = dfg_axis(size)
+    nv = np.maximum(x, DFG_MIN_NDOTV)
+    sv = np.sqrt(1.0 - nv * nv)
+    table = np.ones((size, size))
+    for j, pr in enumerate(x):
+        cx, cz = _specular_scale_bias(g_model, nv, pr, *DFG_SAMPLES[g_model], centroid=True)
+        tan_c = -cx / np.maximum(cz, 1e-12)
+        den = sv + tan_c * (1.0 - nv)
+        table[j] = np.where(den > 1e-6, tan_c / np.where(den > 1e-6, den, 1.0), 1.0)
+    return np.clip(table, 0.0, 1.0).astype(np.float32)
+
+
+def ms_table(dfg: np.ndarray, dominant: np.ndarray) -> np.ndarray:
     """The multiple-scattering table (Kulla and Conty 2017) from a DFG table, same axes:
     channel 0 is E(n.v, pr) = A + B, the directional albedo of the single-scattering specular
     lobe with F = 1; channel 1 is E_avg(pr) = 2 integral_0^1 E(mu) mu dmu (trapezoids over the
-    table's columns), the same along a row; channel 2 is 0."""
+    table's columns), the same along a row; channel 2 is the dominant direction's t
+    (dominant_table)."""
     E = np.clip(dfg[..., 0] + dfg[..., 1], 0.0, 1.0).astype(np.float64)
     mu = np.maximum(dfg_axis(dfg.shape[1]), DFG_MIN_NDOTV)
     e_avg = 2.0 * np.sum(0.5 * (E[:, 1:] * mu[1:] + E[:, :-1] * mu[:-1]) * np.diff(mu), axis=1)
     table = np.zeros(dfg.shape, np.float32)
     table[..., 0] = E
     table[..., 1] = np.clip(e_avg, 0.0, 1.0)[:, None]
+    table[..., 2] = dominant
     return table
 
 
@@ -303,7 +330,7 @@ def tables_folder() -> Path:
         for g in G_MODELS:
             dfg = dfg_values(g)
             write_float_exr(stage / dfg_file(g), dfg)
-            write_float_exr(stage / ms_file(g), ms_table(dfg))
+            write_float_exr(stage / ms_file(g), ms_table(dfg, dominant_table(g)))
     return cache.cached(key, fill)
 
 
