@@ -15,7 +15,7 @@ import bpy
 
 from . import drivers, model_node
 from ..core import lights as core_lights
-from ..core.model import LIGHT_SLOTS, LIGHT_TYPE_CODES, light_key, BY_KEY
+from ..core.model import BY_KEY, LIGHT_SLOTS, light_key
 
 # Blender light settings the model does not follow (docs/model.md "Lights", limits)
 UNSUPPORTED = (("normalize", False, "Normalize off"),
@@ -87,14 +87,6 @@ def scene_lights(scene: bpy.types.Scene, exclude=None) -> list:
                   and o.data.type in core_lights.TYPES and renders(o, scene, collections)]
     order = core_lights.ranked(candidates, key=as_light)
     return order[:LIGHT_SLOTS], order[LIGHT_SLOTS:]
-
-
-def type_code(obj: bpy.types.Object) -> int:
-    data = obj.data
-    if data.type == 'AREA':
-        return LIGHT_TYPE_CODES["AREA_ELLIPSE" if data.shape in ('DISK', 'ELLIPSE')
-                                else "AREA_RECTANGLE"]
-    return LIGHT_TYPE_CODES[data.type]
 
 
 def unsupported(obj: bpy.types.Object) -> list:
