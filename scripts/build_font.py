@@ -70,6 +70,9 @@ def advance(fid, c) -> int:
 
 
 def main() -> None:
+    if not hasattr(blf, "NO_FALLBACK") or not hasattr(blf, "bind_imbuf"):
+        sys.exit(f"Blender {bpy.app.version_string}'s blf cannot draw one font alone into an "
+                 "image; run this with Blender 5.2's bpy (.venv-bpy5.2/bin/python)")
     fid = blf.load(os.path.join(bpy.utils.system_resource("DATAFILES"), "fonts", "Inter.woff2"))
     blf.enable(fid, blf.NO_FALLBACK)                 # Inter's glyphs only, no substitutes
     crops, meta, missing = [], {}, set()
