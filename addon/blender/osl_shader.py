@@ -6,6 +6,7 @@ read-only, and external-mode script nodes write the compiled .oso next to the .o
 
 from __future__ import annotations
 
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -26,24 +27,46 @@ def ensure_oslquery() -> None:
     bundled_module("oslquery")
 
 
-def shader_text() -> bpy.types.Text:
-    """The text datablock holding the shader source, refreshed from osl/ when it differs."""
-    source = SHADER_FILE.read_text(encoding="utf-8")
-    text = bpy.data.texts.get(TEXT_NAME)
+# A local include: #include "name.osl" (or .h), a file beside the includer or in osl/.
+_LOCAL_INCLUDE = re.compile(r'^#include "([\w.-]+)"[ \t]*$', re.M)
+
+
+def source(path: Path = SHADER_FILE, _depth: int = 0) -> str:
+    """A shader's source with its local includes inlined. Cycles compiles an internal script
+    from a temporary copy, beside which no included file would be found; the standard headers
+    (stdcycles.h) are left to the compiler."""
+    path = Path(path)
+    if _depth > 4:
+        raise UserError(f"{path.name}: includes nested too deep")
+
+    def inline(m):
+        for folder in (path.parent, OSL_DIR):
+            if (folder / m[1]).is_file():
+                return source(folder / m[1], _depth + 1)
+        return m[0]
+    return _LOCAL_INCLUDE.sub(inline, path.read_text(encoding="utf-8"))
+
+
+def shader_text(path: Path = SHADER_FILE, name: str = TEXT_NAME) -> bpy.types.Text:
+    """The text datablock holding a shader's source, refreshed from its file when it differs."""
+    text_source = source(path)
+    text = bpy.data.texts.get(name)
     if text is None:
-        text = bpy.data.texts.new(TEXT_NAME)
-    if text.as_string() != source:
-        text.from_string(source)
+        text = bpy.data.texts.new(name)
+    if text.as_string() != text_source:
+        text.from_string(text_source)
     return text
 
 
-def compile_script_node(node: bpy.types.ShaderNodeScript) -> None:
-    """Compile the internal script into the node and create its sockets."""
+def compile_script_node(node: bpy.types.ShaderNodeScript, path: Path = SHADER_FILE,
+                        name: str = TEXT_NAME, output: str = "BSDF") -> None:
+    """Compile a shader (the model's, by default) as the node's internal script and create
+    its sockets."""
     ensure_oslquery()
     from cycles import osl as cycles_osl
 
     node.mode = 'INTERNAL'
-    node.script = shader_text()
+    node.script = shader_text(path, name)
     errors = []
 
     def report(kind, message):
@@ -59,10 +82,11 @@ def compile_script_node(node: bpy.types.ShaderNodeScript) -> None:
     finally:
         shutil.rmtree(tempfile.tempdir, ignore_errors=True)
         tempfile.tempdir = saved
-    if errors or "BSDF" not in node.outputs:
-        raise UserError("the Cook-Torrance OSL shader failed to compile: "
+    if errors or output not in node.outputs:
+        raise UserError(f"the OSL shader {Path(path).name} failed to compile: "
                         + ("; ".join(errors) or "no output socket") + " (see the console)")
-    set_texture_convention(node)
+    if any(sock.identifier == "tex_bottom_up" for sock in node.inputs):
+        set_texture_convention(node)
 
 
 def set_texture_convention(node: bpy.types.ShaderNodeScript) -> None:
