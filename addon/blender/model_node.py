@@ -24,6 +24,7 @@ IMPLEMENTATION_LABELS = {"osl": "OSL Shader", "nodes": "Node Group"}
 NODE_NAME = "Cook-Torrance"
 SURFACE_KEYS = tuple(i.key for i in SURFACE)
 OPTION_KEYS = tuple(i.key for i in OPTIONS)
+LIGHTING_KEYS = tuple(i.key for i in LIGHTING)
 
 
 def implementation(node: bpy.types.Node) -> str | None:
@@ -63,6 +64,13 @@ def _input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
 def surface_input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
     """The socket of a surface input (albedo, metallic, smoothness, normal)."""
     if key not in SURFACE_KEYS:
+        raise KeyError(key)
+    return _input(node, key)
+
+
+def lighting_input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
+    """The socket of a key-light or world input (core.model LIGHTING: sun_to_light, ...)."""
+    if key not in LIGHTING_KEYS:
         raise KeyError(key)
     return _input(node, key)
 

@@ -134,6 +134,11 @@ def _save(scene, image, path: Path, fmt: str) -> None:
     image.save_render(str(path), scene=scene)
 
 
+def save_exr(scene, image, path: Path) -> None:
+    """Save a render result as a 32-bit float RGB EXR (the raw values)."""
+    _save(scene, image, path, "exr")
+
+
 def _seconds(stamp: str) -> float:
     """'MM:SS.ss' or 'HH:MM:SS.ss' (Cycles' metadata) to seconds."""
     total = 0.0
