@@ -1,4 +1,4 @@
-"""The command line: ``render``, ``compare``, ``bake`` and ``matrix`` (scripts/ctlab.py is the
+"""The command line: ``render``, ``compare``, ``bake``, ``matrix`` and ``plot`` (scripts/ctlab.py is the
 entry). It maps arguments onto settings (core.settings) and runs the pipeline (jobs/pipeline.py).
 
 Bad input gets a one-line message naming the problem and exit status 2, and nothing is
@@ -27,8 +27,8 @@ from pathlib import Path
 from . import pipeline
 from ..blender.renderer import ENGINES
 from ..core.errors import Cancelled, UserError
-from ..core.model import (DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IBL_MODES, MATRIX_ALBEDO, UNITS, VIEWS,
-                          ModelOptions)
+from ..core.model import (DEFAULT_ALBEDO, DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IBL_MODES,
+                          MATRIX_ALBEDO, UNITS, VIEWS, ModelOptions)
 from ..core.settings import SHADERS, MatrixSettings
 
 EXIT_BAD_INPUT = 2
@@ -322,6 +322,29 @@ def cmd_parity(args) -> None:
         f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}")
 
 
+def plot_settings_from(args):
+    """The plot's settings from the command line, validated (core.brdf_plot.PlotSettings)."""
+    from ..core.brdf_plot import PlotSettings, parse_compare
+    views = [v.strip() for item in (args.view or ()) for v in item.split(",") if v.strip()]
+    return PlotSettings(metallic=args.metallic, smoothness=args.smoothness,
+                        albedo=parse_vector(args.albedo, 3, "albedo"), g_model=args.g_model,
+                        diffuse_model=args.diffuse_model, units=args.units, energy=args.energy,
+                        shader=args.shader, views=tuple(views),
+                        compare=parse_compare(args.compare))
+
+
+def cmd_plot(args) -> None:
+    """The BRDF plotted from the model's own code (pipeline.run_plot)."""
+    settings = plot_settings_from(args)
+    out = check_path(args.out, "--out")
+    say(f"plotting the {settings.shader} model: metallic {settings.metallic:g}, smoothness "
+        f"{settings.smoothness:g} -> {out}")
+    data = pipeline.run_plot(settings, out, events(), args.verbose)
+    say(f"done: f_r up to {data['slice']['max']:.4g} /sr on the slice, mean directional "
+        f"albedo {data['albedo']['mean_total']:.3f}; slice.exr, slice.png, lobe.svg, "
+        f"albedo.csv and plot.json in {out}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="ctlab", description="Cook-Torrance Lab batch tools")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -360,6 +383,28 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Blender's bundled HDRIs for --parity (default: %(default)s)")
     add_scene_arguments(m)
     m.set_defaults(func=cmd_matrix)
+    p = sub.add_parser("plot", help="the BRDF plotted from the model's own code: the "
+                                    "theta_h x theta_d slice, lobes and directional albedo")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--metallic", type=float, default=0.0, help="0 to 1 (default 0)")
+    p.add_argument("--smoothness", type=float, default=0.5, help="0 to 1 (default 0.5)")
+    p.add_argument("--albedo", default=",".join(map(str, DEFAULT_ALBEDO)),
+                   help="R,G,B linear albedo, each 0 to 1 (default %(default)s)")
+    p.add_argument("--g", dest="g_model", default=G_MODELS[0], help="|".join(G_MODELS))
+    p.add_argument("--diffuse", dest="diffuse_model", default=DIFFUSE_MODELS[0],
+                   help="|".join(DIFFUSE_MODELS))
+    p.add_argument("--units", default=UNITS[0], help="|".join(UNITS))
+    p.add_argument("--energy", default=ENERGY_MODES[0], help="|".join(ENERGY_MODES))
+    p.add_argument("--shader", default="osl", choices=("osl", "nodes"),
+                   help="the implementation that evaluates the model (default osl)")
+    p.add_argument("--view", action="append", default=None,
+                   help="also slice these term views (comma list, repeatable): "
+                        "D, F, G, specular_brdf, diffuse_brdf, NdotL, NdotV, NdotH, VdotH")
+    p.add_argument("--compare", action="append", default=None,
+                   help="overlay a variant: KEY=VALUE with KEY g, diffuse or energy (comma "
+                        "list, repeatable), e.g. g=smith_ggx_correlated,g=unity_smith_joint")
+    p.add_argument("--verbose", action="store_true", help="show Blender's own output")
+    p.set_defaults(func=cmd_plot)
     return parser
 
 
@@ -370,7 +415,8 @@ def fill_defaults(args, defaults: dict) -> None:
 
 
 VALUE_FLAGS = {a.flag for a in SCENE_ARGS if not a.flag_only} | {
-    "--out", "--view", "--engine", "--shader", "--parity-hdris"}
+    "--out", "--view", "--engine", "--shader", "--parity-hdris", "--metallic", "--smoothness",
+    "--compare"}
 
 
 def main(argv_=None) -> int:

@@ -19,7 +19,7 @@ import bpy
 
 from ..blender import model_node, renderer, scene_builder
 from ..blender.paths import bundled_hdri, resolve_hdri
-from ..core import energy, ibl_bake
+from ..core import brdf_plot, energy, ibl_bake
 from ..core.compare import compare, read_image
 from ..core.errors import Cancelled
 from ..core.files import check_writable, refuse_overwrite
@@ -261,6 +261,52 @@ def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
     holds = all(max(c["ciede2000_mean"] for c in r["cells"]) <= PARITY_BOUND
                 for _, r, _ in entries)
     return {"holds": holds, "report": report, "comparisons": {n: r for n, r, _ in entries}}
+
+
+# ----------------------------------------------------------------------------------------
+# BRDF plots
+
+def evaluate_plot(settings: brdf_plot.PlotSettings, events: Events | None = None,
+                  verbose: bool = False) -> dict:
+    """The model of ``settings`` and of each variant (brdf_plot.PlotSettings.variants)
+    evaluated by the chosen implementation at every configuration of the plot, in a fresh
+    empty scene: {tag: brdf_plot.assemble(...)}, the variants' labels under "labels"."""
+    from ..blender.model_eval import Evaluator
+    events = events or Events()
+    lay = brdf_plot.layout(settings)
+    variants = settings.variants()
+    base_views = tuple(dict.fromkeys(brdf_plot.BRDF_VIEWS + (brdf_plot.WEIGHT_VIEW,)
+                                     + settings.views))
+    renders = [(tag, view, changes) for tag, _, changes in variants
+               for view in (brdf_plot.BRDF_VIEWS if tag else base_views)]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    evaluator = Evaluator(settings.shader, lay.n, lay.l, settings.albedo, settings.metallic,
+                          settings.smoothness, settings.options(), verbose)
+    images: dict = {}
+    for k, (tag, view, changes) in enumerate(renders):
+        events.check()
+        events.progress(k + 1, len(renders) + 1, f"{view}" + (f" ({tag})" if tag else ""))
+        images.setdefault(tag, {})[view] = evaluator.render(settings.options(view, **changes))
+    results = {tag: brdf_plot.assemble(lay, images[tag], settings.views if not tag else (),
+                                       images[""][brdf_plot.WEIGHT_VIEW])
+               for tag, _, _ in variants}
+    results["labels"] = {tag: label for tag, label, _ in variants}
+    return results
+
+
+def run_plot(settings: brdf_plot.PlotSettings, out: Path, events: Events | None = None,
+             verbose: bool = False) -> dict:
+    """``ctlab plot``: the BRDF's slice, lobes and directional albedo from the model's own
+    code, written into ``out`` whole (plot_figures.write_plot). Returns plot.json's data."""
+    from ..core import plot_figures
+    events = events or Events()
+    check_writable(out)
+    results = evaluate_plot(settings, events, verbose)
+    events.check()
+    events.note("writing the plots")
+    return plot_figures.write_plot(Path(out), settings, results,
+                                   {"blender": bpy.app.version_string,
+                                    "implementation": settings.shader})
 
 
 # ----------------------------------------------------------------------------------------
