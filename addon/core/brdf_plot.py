@@ -271,19 +271,19 @@ class PlotSettings:
         return ggx_alpha(self.smoothness)
 
     def variants(self) -> list:
-        """[(tag, label, switch changes)]: the plot's own model first (tag ""), then each
-        --compare item that changes something."""
+        """[(tag, label, switch changes)]: the plot's own model first (tag "", labelled with
+        its switches), then each --compare item that changes something (labelled with what
+        it changes)."""
         out = [("", self.label(), {})]
         for key, value in self.compare:
             switch = COMPARE_KEYS[key][0]
             if getattr(self, switch) != value:
-                out.append((f"{key}-{value}", self.label(**{switch: value}), {switch: value}))
+                out.append((f"{key}-{value}", _switch_label(switch, value), {switch: value}))
         return out
 
-    def label(self, **changes) -> str:
-        o = self.options(**changes)
-        return f"G {o.g_model}, {o.diffuse_model} diffuse" + \
-            (", energy compensated" if o.energy == "compensated" else "")
+    def label(self) -> str:
+        return ", ".join(_switch_label(k, getattr(self, k))
+                         for k in ("g_model", "diffuse_model", "energy"))
 
     def describe(self) -> dict:
         return {"metallic": self.metallic, "smoothness": self.smoothness,
@@ -292,6 +292,12 @@ class PlotSettings:
                 "diffuse_model": self.diffuse_model, "units": self.units,
                 "energy": self.energy, "shader": self.shader, "views": list(self.views),
                 "compare": [f"{k}={v}" for k, v in self.compare]}
+
+
+def _switch_label(switch: str, value: str) -> str:
+    return {"g_model": f"G {value}", "diffuse_model": f"{value} diffuse",
+            "energy": "energy compensated" if value == "compensated" else "single scattering"
+            }[switch]
 
 
 # ----------------------------------------------------------------------------------------

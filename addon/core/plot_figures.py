@@ -51,8 +51,8 @@ def lobe_svg(lobes: dict, labels: dict, title: str = "", width: int = 640,
     for f in (0.25, 0.5, 0.75, 1.0):
         parts.append(f"<path d='M {cx - r * f:.1f} {cy} A {r * f:.1f} {r * f:.1f} 0 0 1 "
                      f"{cx + r * f:.1f} {cy}' fill='none' stroke='#ddd'/>"
-                     f"<text x='{cx + r * f + 2:.1f}' y='{cy + 13}' fill='#666'>"
-                     f"{peak * f:.3g}</text>")
+                     f"<text x='{cx + r * f - 2:.1f}' y='{cy + 13}' fill='#666' "
+                     f"text-anchor='end'>{raster_figures.number(peak * f)}</text>")
     for deg in range(-90, 91, 30):
         a = math.radians(deg)
         x, y = cx + r * math.sin(a), cy - r * math.cos(a)
@@ -86,13 +86,13 @@ def lobe_svg(lobes: dict, labels: dict, title: str = "", width: int = 640,
         y += 15
     y = 18
     for k, tag in enumerate(lobes):
-        parts.append(f"<line x1='{width - 230}' y1='{y - 4}' x2='{width - 205}' y2='{y - 4}' "
+        parts.append(f"<line x1='{width - 260}' y1='{y - 4}' x2='{width - 235}' y2='{y - 4}' "
                      f"stroke='#333' stroke-width='1.6'{_dash(k)}/>"
-                     f"<text x='{width - 200}' y='{y}'>{html.escape(labels[tag])}</text>")
+                     f"<text x='{width - 230}' y='{y}'>{html.escape(labels[tag])}</text>")
         y += 15
     parts.append(f"<text x='{cx}' y='{height - 12}' text-anchor='middle' fill='#444'>"
                  "f_r (n.l), luminance, in the incidence plane; radius linear, "
-                 f"outer ring {peak:.4g}</text></svg>")
+                 f"outer ring {raster_figures.number(peak)}</text></svg>")
     return "".join(parts)
 
 
@@ -104,7 +104,7 @@ def albedo_svg(albedos: dict, labels: dict, title: str = "", width: int = 640,
     tv = bp.albedo_angles()
     top_value = max(1.0, max(float(np.max(luminance(a["total"]))) for a in albedos.values()))
     y_max = math.ceil(top_value * 10 + 0.5) / 10
-    left, right, top, bottom = 48, 210, 28 if title else 12, 36
+    left, right, top, bottom = 48, 250, 28 if title else 12, 36
     pw, ph = width - left - right, height - top - bottom
 
     def xy(t, e):

@@ -25,7 +25,7 @@ def _hex(colour: str) -> tuple:
     return tuple(int(colour[i:i + 2], 16) / 255.0 for i in (1, 3, 5))
 
 
-def _number(x: float) -> str:
+def number(x: float) -> str:
     if x == 0:
         return "0"
     if abs(x) >= 1e4 or abs(x) < 1e-2:
@@ -57,12 +57,12 @@ def slice_figure(values: np.ndarray, title: str, log: bool, diff: bool = False) 
         lo = hi / 10 ** SLICE_DECADES
         t = (np.log10(np.maximum(v, lo)) - math.log10(lo)) / (math.log10(hi) - math.log10(lo))
         img = colormap(t)
-        ticks = [(10.0 ** k, _number(10.0 ** k)) for k in range(math.ceil(math.log10(lo)),
+        ticks = [(10.0 ** k, number(10.0 ** k)) for k in range(math.ceil(math.log10(lo)),
                                                                  math.floor(math.log10(hi)) + 1)]
     else:
         lo, hi = 0.0, max(1.0, float(np.max(v)))
         img = colormap(v / hi)
-        ticks = [(x, _number(x)) for x in np.linspace(0, hi, 5)]
+        ticks = [(x, number(x)) for x in np.linspace(0, hi, 5)]
     c.paste(left, top, img, scale=SCALE)
     c.rect(left, top, size, size, stroke=GREY)
     for deg in range(0, 91, 15):
@@ -93,7 +93,7 @@ def slice_figure(values: np.ndarray, title: str, log: bool, diff: bool = False) 
         c.line([(bx + bw, y), (bx + bw + 4, y)], GREY, width=1)
         c.text(bx + bw + 7, y + 4, label, size=11)
     if log:
-        c.text(bx, top + size + 18, f"max {_number(hi)}", size=11)
+        c.text(bx, top + size + 18, f"max {number(hi)}", size=11)
     return c
 
 
@@ -117,7 +117,7 @@ def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
     for f in (0.25, 0.5, 0.75, 1.0):
         a = np.linspace(-math.pi / 2, math.pi / 2, 91)
         c.line(list(zip(cx + r * f * np.sin(a), cy - r * f * np.cos(a))), LIGHT, width=1)
-        c.text(cx + r * f + 3, cy + 14, _number(peak * f), size=11, colour=GREY)
+        c.text(cx + r * f - 3, cy + 14, number(peak * f), size=11, colour=GREY, anchor="end")
     for deg in range(-90, 91, 30):
         a = math.radians(deg)
         c.line([(cx, cy), (cx + r * math.sin(a), cy - r * math.cos(a))], LIGHT, width=1)
@@ -147,7 +147,7 @@ def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
         c.line([(x0, y - 4), (x0 + 24, y - 4)], BLACK, width=1.8, dash=dash)
         c.text(x0 + 30, y, labels[tag], size=11)
         y += 16
-    c.text(cx, height - 14, f"f_r (n·l), luminance; outer ring {_number(peak)}", size=11,
+    c.text(cx, height - 14, f"f_r (n·l), luminance; outer ring {number(peak)}", size=11,
            anchor="middle", colour=GREY)
     return c
 
@@ -161,7 +161,7 @@ def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
     top_value = max(1.0, max(float(np.max(luminance(a["total"]))) for a in albedos.values()))
     y_max = math.ceil(top_value * 10 + 0.5) / 10
     left, top = 56, 36
-    pw, ph = width - left - 20, height - top - 60 - 16 * len(albedos)
+    pw, ph = width - left - 20, height - top - 60 - 16 * (len(albedos) + 1)
 
     def xy(t, e):
         return left + pw * t / 90.0, top + ph * (1 - e / y_max)
@@ -179,20 +179,20 @@ def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
     c.text(16, top + ph / 2, "directional albedo", size=13, anchor="middle", rotate=90)
     styles = (("total", None), ("specular", (6.0, 3.0)), ("diffuse", (2.0, 2.0)))
     y = top + ph + 56
-    for k, (tag, a) in enumerate(albedos.items()):
-        colour = _hex(COLOURS[k % len(COLOURS)])
+    for k, (tag, a) in enumerate(albedos.items()):          # a colour per variant
+        colour = COLOURS[k % len(COLOURS)]
+        colour = _hex(colour)
         for part, dash in styles:
             c.line([xy(t, e) for t, e in zip(tv, luminance(a[part]))], colour, width=1.8,
                    dash=dash)
         c.line([(left, y - 4), (left + 24, y - 4)], colour, width=2.5)
         c.text(left + 30, y, labels[tag], size=11)
         y += 16
-    x = left + pw - 230
+    x = left                                                  # a dash pattern per part
     for part, dash in styles:
-        c.line([(x, y - 4 - 16 * len(albedos)), (x + 24, y - 4 - 16 * len(albedos))], BLACK,
-               width=1.8, dash=dash)
-        c.text(x + 30, y - 16 * len(albedos), part, size=11)
-        x += 40 + c.text_width(part, 11) + 16
+        c.line([(x, y - 4), (x + 24, y - 4)], BLACK, width=1.8, dash=dash)
+        c.text(x + 30, y, part, size=11)
+        x += 30 + c.text_width(part, 11) + 24
     return c
 
 
