@@ -143,11 +143,49 @@ def furnace_section(furnace: dict) -> str:
             f"<table>{head}{''.join(rows)}</table>")
 
 
+PLOTS_NOTE = """<p>The BRDF itself, evaluated by the OSL shader's own code at one configuration
+per pixel (<code>ctlab plot</code>, docs/model.md "BRDF plots"), for four spheres of this job:
+the &theta;<sub>h</sub> &times; &theta;<sub>d</sub> slice of f<sub>r</sub> = f<sub>d</sub> +
+f<sub>s</sub> at &phi;<sub>d</sub> = 90&deg; (Burley 2012; log scale, 7 decades below the
+maximum) for this model and for the other G models, each G's relative difference from this
+model, and the lobes f<sub>r</sub> (n&middot;l) in the incidence plane with the directional
+albedo (solid: this model; dashed and dotted: the other G models). The Cook-Torrance G is
+min(1, 2(n&middot;h)(n&middot;v)/(v&middot;h), 2(n&middot;h)(n&middot;l)/(v&middot;h)): at
+&phi;<sub>d</sub> = 90&deg; it is min(1, 2 cos&sup2;&theta;<sub>h</sub>), which is 1 up to
+&theta;<sub>h</sub> = 45&deg; whatever &theta;<sub>d</sub>, where Smith's G falls toward grazing
+&theta;<sub>d</sub>; that is where the difference slices are red. A dielectric's total albedo
+can exceed 1 at grazing views: the model's diffuse is the fixed 0.96 &times; albedo of Unity's
+Standard shader, not reduced where the specular's Fresnel term grows.</p>"""
+
+
+def plots_section(plots) -> str:
+    """``plots``: (label, folder, plot.json data) per sphere."""
+    from .brdf_plot import slice_name
+    parts = ["<h2>The BRDF itself: slices, lobes and directional albedo</h2>", PLOTS_NOTE]
+    for label, folder, data in plots:
+        variants = data["variants"]
+        figs = [(slice_name(), f"f_r: {variants[0]['label']}")]
+        figs += [(slice_name(tag=v["tag"]), f"f_r: {v['label']}") for v in variants[1:]]
+        figs += [(slice_name(tag=f"diff_{v['tag']}"), f"({v['label']} &minus; this) / this")
+                 for v in variants[1:]]
+        row = "".join(
+            f"<figure class='plot'><img src='{html.escape(folder)}/{name}.png' "
+            f"alt='{html.escape(name)}'><figcaption>{caption if '&' in caption else html.escape(caption)}"
+            f"</figcaption></figure>" for name, caption in figs)
+        curves = "".join(
+            f"<figure><img src='{html.escape(folder)}/{name}' alt='{name}'></figure>"
+            for name in ("lobe.svg", "albedo.svg"))
+        parts.append(f"<h3>{html.escape(label)}</h3><div class='row'>{row}</div>"
+                     f"<div class='row'>{curves}</div>")
+    return "".join(parts)
+
+
 STYLE = """<style>
 body { font-family: system-ui, sans-serif; margin: 2em; color: #222; }
 .row { display: flex; gap: 1em; flex-wrap: wrap; }
 figure { margin: 0; } figure img { width: 100%; max-width: 512px; image-rendering: pixelated; }
 figcaption { text-align: center; font-weight: 600; }
+figure.plot img { max-width: 340px; image-rendering: auto; }
 table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
 td, th { border: 1px solid #ccc; padding: 2px 8px; text-align: right; }
 tr.all td { font-weight: 600; } pre { background: #f4f4f4; padding: 1em; }
@@ -196,13 +234,14 @@ def write_parity_report(out_dir: Path, entries, bound: float) -> Path:
 
 
 def write_report(out_dir: Path, comparisons, scene: dict, timings: dict, attribution=None,
-                 furnace=None) -> Path:
+                 furnace=None, plots=None) -> Path:
     """Write report.html into out_dir (whole or not at all); image paths are relative.
 
     ``comparisons``: (render folder, reference folder, comparison folder, render label,
     reference label, metrics) tuples; the first is the model against Principled BSDF.
     ``attribution``: (switch label, metrics against Principled) in switch order;
-    ``furnace``: {curve set label: energy.directional_albedo curves}."""
+    ``furnace``: {curve set label: energy.directional_albedo curves}; ``plots``: (label,
+    folder, plot.json data) of the BRDF plots."""
     params = {k: scene[k] for k in ("rows", "cols", "width", "height", "samples", "hdri",
                                     "hdri_strength", "hdri_rotation_deg", "sun", "model",
                                     "principled_distribution", "blender") if k in scene}
@@ -241,6 +280,7 @@ each sphere's radius.</p>
 {"<h2>Attribution: what explains the difference from Principled</h2>" + ATTRIBUTION_NOTE +
  attribution_table(attribution) if attribution else ""}
 {furnace_section(furnace) if furnace else ""}
+{plots_section(plots) if plots else ""}
 {study_html}
 <h2>Parameters</h2><pre>{html.escape(json.dumps(params, indent=2))}</pre>
 </body></html>

@@ -25,6 +25,7 @@ from ..core.errors import Cancelled
 from ..core.files import check_writable, refuse_overwrite
 from ..core.hdri import load_hdri
 from ..core.report import write_parity_report, write_report
+from ..core.model import G_MODELS
 from ..core.settings import MatrixSettings, with_overrides
 
 
@@ -180,19 +181,24 @@ def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | N
         timings[labels[folder]] = scenes[folder]["render_seconds"]
         events.note(f"{timings[labels[folder]]:.1f} s")
     events.check()
-    events.progress(steps - 1, steps, "comparing")
+    events.progress(steps - 1, steps, "comparing; the BRDF plots")
     results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
                for cmp_dir, a, b in MATRIX_COMPARISONS}
     furnace = {furnace_label(g, e): energy.directional_albedo(
         read_image(out / folder / "render.exr"), scenes[folder])
         for folder, g, e in FURNACE_RENDERS}
+    plots = []
+    for name, label, plot in report_plots(base):
+        events.check()
+        events.note(f"BRDF plot: {label}")
+        plots.append((label, f"plots/{name}", run_plot(plot, out / "plots" / name)))
     events.progress(steps, steps, "writing the report")
     report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
                                 for cmp_dir, a, b in MATRIX_COMPARISONS[:5]],
                           scenes["cook_torrance"], timings,
                           attribution=[(step[1], results[step[0]], *step[2:])
                                        for step in ATTRIBUTION],
-                          furnace=furnace)
+                          furnace=furnace, plots=plots)
     return {"report": report, "comparisons": results}
 
 
@@ -292,6 +298,31 @@ def evaluate_plot(settings: brdf_plot.PlotSettings, events: Events | None = None
                for tag, _, _ in variants}
     results["labels"] = {tag: label for tag, label, _ in variants}
     return results
+
+
+def report_plots(base: MatrixSettings) -> list:
+    """The main job's BRDF plots: (folder, label, PlotSettings) for a smooth and a rough
+    sphere of the matrix (the smoothest below 1 and the roughest above 0, or the extremes
+    where those coincide), each a metal and a dielectric (the last and first columns), with
+    the base's albedo and switches and the other G models as variants."""
+    cells = list(base.cells())
+    smooth = sorted({c[3] for c in cells})
+    metal = sorted({c[2] for c in cells})
+    inner = [x for x in smooth if 0.0 < x < 1.0] or smooth
+    rows = (inner[-1], inner[0]) if inner[-1] != inner[0] else (smooth[-1], smooth[0])
+    compare = tuple(("g", g) for g in G_MODELS if g != base.model.g_model)
+    out = []
+    for kind, s in zip(("smooth", "rough"), dict.fromkeys(rows)):
+        for m in dict.fromkeys((metal[-1], metal[0])):
+            what = "metal" if m >= 0.5 else "dielectric"
+            out.append((f"m{m:.2f}_s{s:.2f}", f"{kind} {what}: metallic {m:.2f}, "
+                                               f"smoothness {s:.2f}",
+                        brdf_plot.PlotSettings(
+                            metallic=m, smoothness=s, albedo=base.albedo,
+                            g_model=base.model.g_model, diffuse_model=base.model.diffuse_model,
+                            units=base.model.units, energy=base.model.energy, shader="osl",
+                            compare=compare)))
+    return out
 
 
 def run_plot(settings: brdf_plot.PlotSettings, out: Path, events: Events | None = None,
