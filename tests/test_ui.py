@@ -365,6 +365,7 @@ def test_panels_draw_for_model_other_and_no_material(addon):
     assert ("operator", "ctlab.switch_implementation") in model_calls
     assert any("Roughness 0.500" in c[1] for c in model_calls if c[0] == "label")
     assert ("prop", "ctlab_energy") in model_calls
+    assert ("operator", "ctlab.brdf_plot") in model_calls
     # the startup file's Point light is shaded, unshadowed by the node group (it says so)
     labels = [c[1] for c in model_calls if c[0] == "label"]
     assert "Other lights: 1 shaded (of 8 slots)" in labels and "  Light" in labels
@@ -460,3 +461,58 @@ def test_render_comparison_in_the_background(addon, tmp_path):
 
     with pytest.raises(RuntimeError, match="output folder not writable"):
         bpy.ops.ctlab.render_comparison(directory="/proc/ctlab", **kw)
+
+
+def test_brdf_plot_of_the_active_material(addon, tmp_path):
+    """BRDF Plot runs ``ctlab plot`` on the material's own values and switches in another
+    process and loads plot.png as the image "Cook-Torrance BRDF Plot" (reloaded by a second
+    plot); a linked input is reported and plotted at its socket's value; a material that is
+    not the model cannot be plotted."""
+    import time
+    cube = bpy.data.objects["Cube"]
+    bpy.context.view_layer.objects.active = cube
+    bpy.ops.ctlab.new_material(implementation="nodes")
+    mat = cube.active_material
+    node = model_node.find(mat)
+    model_node.surface_input(node, "metallic").default_value = 1.0
+    model_node.surface_input(node, "smoothness").default_value = 0.7
+    model_node.surface_input(node, "albedo").default_value = (1.0, 0.5, 0.2, 1.0)
+    model_node.set_option(node, "g_model", "smith_ggx_correlated")
+
+    def plot(out, **kw):
+        assert bpy.ops.ctlab.brdf_plot(directory=str(out), **kw) == {'FINISHED'}
+        start = time.monotonic()
+        while operators.JOBS["plot"].poll() == "running":
+            assert time.monotonic() - start < 300, operators.JOBS["plot"].lines[-10:]
+            time.sleep(0.2)
+        operators._job_tick()
+        job = operators.JOBS["plot"]
+        assert job.state == "done", "\n".join(job.lines[-20:])
+        return json.loads((out / "plot.json").read_text())
+
+    data = plot(tmp_path / "a")
+    p = data["parameters"]
+    assert (p["metallic"], p["smoothness"], p["g_model"], p["shader"]) == \
+        (1.0, pytest.approx(0.7), "smith_ggx_correlated", "nodes")
+    assert p["albedo"] == pytest.approx([1.0, 0.5, 0.2])
+    image = bpy.data.images[operators.PLOT_IMAGE]
+    from addon.core.compare import read_image
+    h, w, _ = read_image(tmp_path / "a" / "plot.png").shape
+    assert tuple(image.size) == (w, h)
+    assert bpy.context.window_manager.ctlab_plot_state == "done"
+
+    # a textured smoothness: plotted at the socket's value, with a warning
+    tex = mat.node_tree.nodes.new("ShaderNodeValue")
+    tex.outputs[0].default_value = 0.1
+    mat.node_tree.links.new(tex.outputs[0], model_node.surface_input(node, "smoothness"))
+    data = plot(tmp_path / "b", compare_g=True)
+    assert data["parameters"]["smoothness"] == pytest.approx(0.7)
+    assert [v["tag"] for v in data["variants"]] == ["", "g-cook_torrance",
+                                                    "g-unity_smith_joint"]
+    assert bpy.data.images[operators.PLOT_IMAGE].filepath.endswith("b/plot.png")
+    argv, notes = operators.plot_command(node, tmp_path)
+    assert any("smoothness is linked" in n for n in notes)
+
+    cube.active_material = bpy.data.materials["Material"]
+    with pytest.raises(RuntimeError, match="poll"):
+        bpy.ops.ctlab.brdf_plot(directory=str(tmp_path / "c"))

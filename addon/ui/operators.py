@@ -423,27 +423,59 @@ class CTLAB_OT_sync_lighting(bpy.types.Operator):
 # ----------------------------------------------------------------------------------------
 # The comparison job in the background
 
-JOBS: dict = {}                  # "comparison" -> background_job.Job
+JOBS: dict = {}                  # "comparison", "plot" -> background_job.Job
+PLOT_IMAGE = "Cook-Torrance BRDF Plot"
 
 
 def _job_tick():
-    """Timer: copy the job's progress into the window manager and redraw; stop when over."""
-    job = JOBS.get("comparison")
-    if job is None:
-        return None
-    state = job.poll()
+    """Timer: copy each job's progress into the window manager and redraw; when a job ends,
+    act on it once (open the comparison's report, load the BRDF plot into an image). Stops
+    when no job runs."""
     wm = bpy.context.window_manager
-    wm.ctlab_job_progress, wm.ctlab_job_message, wm.ctlab_job_state = \
-        job.fraction, job.message, state
+    running = False
+    for kind, job in list(JOBS.items()):
+        state = job.poll()
+        if kind == "comparison":
+            wm.ctlab_job_progress, wm.ctlab_job_message, wm.ctlab_job_state = \
+                job.fraction, job.message, state
+        else:
+            wm.ctlab_plot_message, wm.ctlab_plot_state = job.message, state
+        if state in ("running", "cancelling"):
+            running = True
+        elif not getattr(job, "handled", False):
+            job.handled = True
+            if kind == "comparison" and state == "done" and job.open_report and \
+                    not bpy.app.background:
+                bpy.ops.wm.url_open(url=job.report.as_uri())
+            elif kind == "plot" and state == "done":
+                show_plot(job.out_dir / "plot.png")
     for window in wm.windows:
         for area in window.screen.areas:
-            if area.type == 'VIEW_3D':
+            if area.type in ('VIEW_3D', 'PROPERTIES', 'IMAGE_EDITOR'):
                 area.tag_redraw()
-    if state in ("running", "cancelling"):
-        return 0.5
-    if state == "done" and job.open_report and not bpy.app.background:
-        bpy.ops.wm.url_open(url=job.report.as_uri())
-    return None
+    return 0.5 if running else None
+
+
+def _start_tick() -> None:
+    if not bpy.app.timers.is_registered(_job_tick):     # one timer, however many jobs
+        bpy.app.timers.register(_job_tick, first_interval=0.5)
+
+
+def show_plot(path: Path) -> bpy.types.Image:
+    """The plot's PNG as the image PLOT_IMAGE (reloaded when it exists), shown in every open
+    Image Editor."""
+    image = bpy.data.images.get(PLOT_IMAGE)
+    if image is None:
+        image = bpy.data.images.load(str(path))
+        image.name = PLOT_IMAGE
+    else:
+        image.filepath = str(path)
+        image.reload()
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == 'IMAGE_EDITOR':
+                area.spaces.active.image = image
+    return image
 
 
 def default_comparison_folder() -> str:
@@ -509,8 +541,7 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
         context.window_manager.ctlab_job_state = "running"
         context.window_manager.ctlab_job_message = "starting"
         context.window_manager.ctlab_job_progress = 0.0
-        if not bpy.app.timers.is_registered(_job_tick):     # one timer, however many jobs
-            bpy.app.timers.register(_job_tick, first_interval=0.5)
+        _start_tick()
         self.report({'INFO'}, f"comparison started in the background -> {out}")
         return {'FINISHED'}
 
@@ -535,12 +566,93 @@ class CTLAB_OT_cancel_comparison(bpy.types.Operator):
         return {'FINISHED'}
 
 
+# ----------------------------------------------------------------------------------------
+# The BRDF plot of a material, in the background
+
+def default_plot_folder() -> str:
+    """The add-on's user folder (the extension's, or beside the cache): never the install
+    folder."""
+    from ..core.cache import cache_dir
+    return str(cache_dir().parent / "brdf_plot")
+
+
+def plot_command(node, out: Path, compare_g: bool = False) -> tuple:
+    """``ctlab plot`` for a model node's values (surface inputs as their sockets hold them,
+    clamped to the model's range as the model clamps them) and switches; with the notes on
+    inputs a texture or another node drives (plotted at the socket's own value)."""
+    from ..core.model import G_MODELS, clamp01
+    notes, values = [], {}
+    for key in ("albedo", "metallic", "smoothness"):
+        sock = model_node.surface_input(node, key)
+        if sock.is_linked:
+            notes.append(f"{key} is linked to {sock.links[0].from_node.name}; plotted at the "
+                         "socket's value")
+        value = sock.default_value
+        values[key] = [clamp01(x) for x in value[:3]] if key == "albedo" else clamp01(value)
+    options = {k: model_node.get_option(node, k) for k in ("g_model", "diffuse_model",
+                                                            "units", "energy")}
+    argv = ["plot", f"--out={out}", f"--metallic={values['metallic']:.9g}",
+            f"--smoothness={values['smoothness']:.9g}",
+            "--albedo=" + ",".join(f"{x:.9g}" for x in values["albedo"]),
+            f"--g={options['g_model']}", f"--diffuse={options['diffuse_model']}",
+            f"--units={options['units']}", f"--energy={options['energy']}",
+            f"--shader={model_node.implementation(node)}"]
+    if compare_g:
+        argv.append("--compare=" + ",".join(f"g={g}" for g in G_MODELS
+                                            if g != options["g_model"]))
+    return argv, notes
+
+
+class CTLAB_OT_brdf_plot(bpy.types.Operator):
+    """Plot the active material's BRDF from the model's own code (in a background process):
+    the θh × θd slice, the lobes and the directional albedo, shown as the image
+    "Cook-Torrance BRDF Plot" in the Image Editor"""
+    bl_idname = "ctlab.brdf_plot"
+    bl_label = "BRDF Plot"
+    bl_options = {'REGISTER'}
+
+    directory: StringProperty(name="Output Folder", subtype='DIR_PATH', default="",
+                              description="Empty: the add-on's user folder")
+    compare_g: BoolProperty(name="Compare G Models", default=False,
+                            description="Overlay the other G models' lobes and slices")
+
+    @classmethod
+    def poll(cls, context):
+        return model_node.find(_active_material(context)) is not None
+
+    def execute(self, context):
+        from ..core.files import check_writable
+        from ..jobs import background_job
+        running = JOBS.get("plot")
+        if running is not None and running.poll() == "running":
+            self.report({'ERROR'}, "a BRDF plot is already being made; wait for it")
+            return {'CANCELLED'}
+        node = model_node.find(_active_material(context))
+        out = Path(bpy.path.abspath(self.directory or default_plot_folder()))
+        try:
+            check_writable(out)
+        except UserError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        argv, notes = plot_command(node, out, self.compare_g)
+        for note in notes:
+            self.report({'WARNING'}, note)
+        JOBS["plot"] = background_job.Job(argv, out)
+        context.window_manager.ctlab_plot_state = "running"
+        context.window_manager.ctlab_plot_message = "starting"
+        _start_tick()
+        self.report({'INFO'}, f"BRDF plot started -> {out}; it opens as the image "
+                              f"'{PLOT_IMAGE}'")
+        return {'FINISHED'}
+
+
 def stop_jobs() -> None:
     """On unregister: no child process or timer may outlive the add-on."""
-    job = JOBS.pop("comparison", None)
-    if job is not None and job.process.poll() is None:
-        job.process.kill()
-        job.process.wait()
+    for kind in list(JOBS):
+        job = JOBS.pop(kind)
+        if job.process.poll() is None:
+            job.process.kill()
+            job.process.wait()
     # a timer left registered at exit hangs Blender's shutdown (measured: a second job
     # registered a second timer and the process never exited)
     while bpy.app.timers.is_registered(_job_tick):
@@ -551,4 +663,4 @@ CLASSES = (CTLAB_OT_build_sphere_matrix, CTLAB_OT_bake_environment, CTLAB_OT_new
            CTLAB_OT_add_node_group, CTLAB_OT_add_texture, CTLAB_OT_switch_implementation,
            CTLAB_OT_convert_to_cook_torrance, CTLAB_OT_convert_to_principled,
            CTLAB_OT_set_view_all, CTLAB_OT_sync_lighting, CTLAB_OT_render_comparison,
-           CTLAB_OT_cancel_comparison)
+           CTLAB_OT_cancel_comparison, CTLAB_OT_brdf_plot)

@@ -6,8 +6,9 @@ from __future__ import annotations
 import bpy
 
 from ..blender import convert, light_sync, model_node, scene_lights
-from .operators import (CTLAB_OT_add_node_group, CTLAB_OT_add_texture,
-                        CTLAB_OT_bake_environment, CTLAB_OT_build_sphere_matrix,
+from .operators import (PLOT_IMAGE, CTLAB_OT_add_node_group, CTLAB_OT_add_texture,
+                        CTLAB_OT_bake_environment, CTLAB_OT_brdf_plot,
+                        CTLAB_OT_build_sphere_matrix,
                         CTLAB_OT_cancel_comparison, CTLAB_OT_convert_to_cook_torrance,
                         CTLAB_OT_convert_to_principled, CTLAB_OT_new_material,
                         CTLAB_OT_render_comparison, CTLAB_OT_set_view_all,
@@ -104,6 +105,15 @@ class CTLAB_PT_material(bpy.types.Panel):
         col.prop(mat, "ctlab_units")
         col.prop(mat, "ctlab_energy")
         col.prop(mat, "ctlab_ibl")
+        wm = context.window_manager
+        row = layout.row()
+        row.operator(CTLAB_OT_brdf_plot.bl_idname, icon='GRAPH')
+        if wm.ctlab_plot_state == "running":
+            row.label(text=f"plotting: {wm.ctlab_plot_message}", icon='TIME')
+        elif wm.ctlab_plot_state == "done":
+            row.label(text=f"Image Editor: {PLOT_IMAGE}", icon='IMAGE_DATA')
+        elif wm.ctlab_plot_state == "failed":
+            row.label(text=wm.ctlab_plot_message, icon='ERROR')
 
         impl = model_node.implementation(node)
         box = layout.box()

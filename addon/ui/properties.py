@@ -4,7 +4,8 @@
   ``ctlab_ibl``: dropdowns that read and write the material's Cook-Torrance node itself (get/set
   functions), so they can never disagree with it; unusable on materials without the model.
 - ``Scene.ctlab_sun``: the Sun the model's key light follows (empty: the scene's first Sun).
-- ``WindowManager.ctlab_job_*``: the background comparison's progress, for the sidebar.
+- ``WindowManager.ctlab_job_*``: the background comparison's progress, for the sidebar;
+  ``ctlab_plot_*``: the BRDF plot's, for the material panel.
 """
 
 from __future__ import annotations
@@ -97,13 +98,16 @@ def register() -> None:
     W.ctlab_job_progress = FloatProperty(name="Progress", subtype='FACTOR', min=0, max=1)
     W.ctlab_job_message = StringProperty(name="Comparison")
     W.ctlab_job_state = StringProperty(name="State")
+    W.ctlab_plot_message = StringProperty(name="BRDF Plot")
+    W.ctlab_plot_state = StringProperty(name="BRDF Plot State")
 
 
 NAMES = ((bpy.types.Material, ("ctlab_view", "ctlab_g_model", "ctlab_diffuse_model",
                                "ctlab_units", "ctlab_energy", "ctlab_ibl")),
          (bpy.types.Scene, ("ctlab_sun",)),
          (bpy.types.WindowManager, ("ctlab_job_progress", "ctlab_job_message",
-                                    "ctlab_job_state")))
+                                    "ctlab_job_state", "ctlab_plot_message",
+                                    "ctlab_plot_state")))
 
 
 def unregister() -> None:
