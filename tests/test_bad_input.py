@@ -104,6 +104,16 @@ CLI_CASES = {
     "lights-huge-number": (RENDER + ["--lights", "@LIGHTS:huge"], "energy out of range"),
     "lights-too-bright": (RENDER + ["--lights", "@LIGHTS:bright"],
                           "the model takes at most 1e+09"),
+    # ctlab plot
+    "plot-metallic-range": (["plot", "--metallic", "2"], "metallic 2.0 out of range; use 0 to 1"),
+    "plot-smoothness-nonfinite": (["plot", "--smoothness", "inf"],
+                                  "smoothness inf out of range; use 0 to 1"),
+    "plot-albedo-range": (["plot", "--albedo", "-1,0,0"], "albedo -1.0 out of range"),
+    "plot-compare-malformed": (["plot", "--compare", "g"], "malformed --compare 'g'"),
+    "plot-compare-unknown": (["plot", "--compare", "g=phong"], "unknown g 'phong' in --compare"),
+    "plot-view": (["plot", "--view", "full"], "view 'full' cannot be sliced"),
+    "plot-shader": (["plot", "--shader", "principled"], "invalid choice: 'principled'"),
+    "plot-out-unwritable": (["plot", "--out", "@FILE/sub"], "output folder not writable"),
 }
 LIGHTS_FILES = {
     "not-json": '[{"type": "SUN",',
@@ -185,7 +195,7 @@ def _argv(case, tmp_path):
         elif a.startswith("@RENDER:"):
             a = str(fake_render(tmp_path / f"render-{a[8:]}-{len(argv)}", a[8:]))
         argv.append(subs.get(a, a.replace("@FILE", str(blocker))))
-    if argv[0] in ("render", "matrix") and "--out" not in argv:
+    if argv[0] in ("render", "matrix", "plot") and "--out" not in argv:
         argv += ["--out", str(tmp_path / "out")]
     if argv[0] == "compare":
         argv += ["--out", str(tmp_path / "out")]

@@ -187,6 +187,18 @@ def test_ctrl_c_during_a_bake_leaves_no_staging_folder(tmp_path):
     assert not leftovers, leftovers
 
 
+def test_ctrl_c_during_a_plot_writes_nothing(tmp_path):
+    """A plot writes its files together at the end: Ctrl-C after its first render leaves
+    --out without a file (and no temporary), exit 130, one line."""
+    out = tmp_path / "plot"
+    proc = _start(["plot", "--compare", "g=smith_ggx_correlated,energy=compensated",
+                   "--view", "D,F,G,NdotL", "--out", str(out)])
+    _wait_for(proc, "[2/")
+    proc.send_signal(signal.SIGINT)
+    assert _cancelled(proc, time.monotonic()) < 5
+    assert not out.exists() or not any(out.iterdir()), list(out.iterdir())
+
+
 def test_a_rerun_removes_the_old_report_first(tmp_path, monkeypatch):
     """The report is written last; an earlier run's is removed when a job starts, so a job
     that stops half-way never leaves a report of old numbers beside new images."""
