@@ -282,8 +282,9 @@ class PlotSettings:
         return out
 
     def label(self) -> str:
-        return ", ".join(_switch_label(k, getattr(self, k))
-                         for k in ("g_model", "diffuse_model", "energy"))
+        """Its G and diffuse, and "energy compensated" when it is."""
+        keys = ("g_model", "diffuse_model") + (("energy",) if self.energy != "none" else ())
+        return ", ".join(_switch_label(k, getattr(self, k)) for k in keys)
 
     def describe(self) -> dict:
         return {"metallic": self.metallic, "smoothness": self.smoothness,

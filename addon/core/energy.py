@@ -10,12 +10,12 @@ n.v = sqrt(1 - (d/R)^2), so one render gives E against the view angle for every 
 
 from __future__ import annotations
 
-import html
 import math
 from pathlib import Path
 
 import numpy as np
 
+from . import svg
 from .hdri import uniform_world
 from .model import ModelOptions
 
@@ -74,23 +74,8 @@ def svg_plot(curves_by_g: dict, width: int = 710, height: int = 320) -> str:
     left, right, top, bottom = 48, 300, 12, 36      # the legend (curve sets) on the right
     pw, ph = width - left - right, height - top - bottom
     y_max = 1.1
-
-    def xy(theta, e):
-        return left + pw * theta / 90.0, top + ph * (1 - e / y_max)
-    parts = [f"<svg xmlns='http://www.w3.org/2000/svg' width='{width}' height='{height}' "
-             "font-family='sans-serif' font-size='11'>",
-             f"<rect x='{left}' y='{top}' width='{pw}' height='{ph}' fill='none' stroke='#888'/>"]
-    for e in (0.0, 0.25, 0.5, 0.75, 1.0):
-        x0, y0 = xy(0, e)
-        parts.append(f"<line x1='{x0}' y1='{y0}' x2='{x0 + pw}' y2='{y0}' stroke='#ddd'/>"
-                     f"<text x='{left - 6}' y='{y0 + 4}' text-anchor='end'>{e:g}</text>")
-    for t in range(0, 91, 15):
-        x0, y0 = xy(t, 0)
-        parts.append(f"<text x='{x0}' y='{y0 + 16}' text-anchor='middle'>{t}</text>")
-    parts.append(f"<text x='{left + pw / 2}' y='{height - 4}' text-anchor='middle'>"
-                 "view angle from the normal (degrees)</text>")
-    parts.append(f"<text x='12' y='{top + ph / 2}' transform='rotate(-90 12 {top + ph / 2})' "
-                 "text-anchor='middle'>directional albedo</text>")
+    parts = svg.document(width, height)
+    xy = svg.view_angle_axes(parts, (left, top, pw, ph), height, y_max, "directional albedo")
     legend_y = top + 10
     dashes = ("", " stroke-dasharray='5 3'", " stroke-dasharray='1 2'")
     for k, (g_model, curves) in enumerate(curves_by_g.items()):
@@ -109,9 +94,8 @@ def svg_plot(curves_by_g: dict, width: int = 710, height: int = 320) -> str:
                 legend_y += 15
     for k, g_model in enumerate(curves_by_g):
         dash = dashes[k % len(dashes)]
-        parts.append(f"<line x1='{left + pw + 10}' y1='{legend_y + 6}' x2='{left + pw + 30}' "
-                     f"y2='{legend_y + 6}' stroke='#333'{dash}/><text x='{left + pw + 36}' "
-                     f"y='{legend_y + 10}'>{html.escape(g_model)}</text>")
+        parts.append(svg.legend_entry(left + pw + 10, legend_y + 10, g_model, dash=dash,
+                                      width=1.0))
         legend_y += 15
     parts.append("</svg>")
     return "".join(parts)

@@ -18,7 +18,7 @@ from .brdf_plot import luminance, slice_name
 from .errors import UserError
 from .files import atomic_paths, json_text
 from .hdri import write_float_exr
-from . import raster_figures
+from . import raster_figures, svg
 from .raster_figures import COLOURS, DASHES
 
 
@@ -28,12 +28,6 @@ def _units_note(settings) -> str:
 
 # ----------------------------------------------------------------------------------------
 # SVG
-
-def _svg_open(width, height) -> list:
-    return [f"<svg xmlns='http://www.w3.org/2000/svg' width='{width}' height='{height}' "
-            f"viewBox='0 0 {width} {height}' font-family='sans-serif' font-size='11'>",
-            f"<rect width='{width}' height='{height}' fill='white'/>"]
-
 
 def _dash(k: int) -> str:
     return f" stroke-dasharray='{DASHES[k % len(DASHES)]}'" if DASHES[k % len(DASHES)] else ""
@@ -47,7 +41,7 @@ def lobe_svg(lobes: dict, labels: dict, title: str = "", width: int = 640,
     theta_l = np.radians(bp.lobe_angles())
     peak = max(float(np.max(luminance(v))) for v in lobes.values()) or 1.0
     cx, cy, r = width / 2, height - 60, min(width / 2 - 40, height - 110)
-    parts = _svg_open(width, height)
+    parts = svg.document(width, height)
     for f in (0.25, 0.5, 0.75, 1.0):
         parts.append(f"<path d='M {cx - r * f:.1f} {cy} A {r * f:.1f} {r * f:.1f} 0 0 1 "
                      f"{cx + r * f:.1f} {cy}' fill='none' stroke='#ddd'/>"
@@ -96,7 +90,7 @@ def lobe_svg(lobes: dict, labels: dict, title: str = "", width: int = 640,
     return "".join(parts)
 
 
-def albedo_svg(albedos: dict, labels: dict, title: str = "", width: int = 640,
+def albedo_svg(albedos: dict, labels: dict, title: str = "", width: int = 700,
                height: int = 320) -> str:
     """Directional albedo (luminance) against θv: solid total, dashed specular, dotted
     diffuse; one colour per variant (``albedos``: {tag: {"specular"|"diffuse"|"total":
@@ -104,29 +98,15 @@ def albedo_svg(albedos: dict, labels: dict, title: str = "", width: int = 640,
     tv = bp.albedo_angles()
     top_value = max(1.0, max(float(np.max(luminance(a["total"]))) for a in albedos.values()))
     y_max = math.ceil(top_value * 10 + 0.5) / 10
-    left, right, top, bottom = 48, 250, 28 if title else 12, 36
+    left, right, top, bottom = 48, 270, 28 if title else 12, 36
     pw, ph = width - left - right, height - top - bottom
 
-    def xy(t, e):
-        return left + pw * t / 90.0, top + ph * (1 - e / y_max)
-    parts = _svg_open(width, height)
+    parts = svg.document(width, height)
     if title:
         parts.append(f"<text x='10' y='18' font-size='13' font-weight='600'>"
                      f"{html.escape(title)}</text>")
-    parts.append(f"<rect x='{left}' y='{top}' width='{pw}' height='{ph}' fill='none' "
-                 "stroke='#888'/>")
-    for e in np.arange(0.0, y_max + 1e-9, 0.25 if y_max <= 2 else 0.5):
-        x0, y0 = xy(0, e)
-        parts.append(f"<line x1='{x0}' y1='{y0:.1f}' x2='{x0 + pw}' y2='{y0:.1f}' "
-                     f"stroke='#ddd'/><text x='{left - 6}' y='{y0 + 4:.1f}' "
-                     f"text-anchor='end'>{e:g}</text>")
-    for t in range(0, 91, 15):
-        x0, y0 = xy(t, 0)
-        parts.append(f"<text x='{x0:.1f}' y='{y0 + 16}' text-anchor='middle'>{t}</text>")
-    parts.append(f"<text x='{left + pw / 2}' y='{height - 4}' text-anchor='middle'>"
-                 "&#952;v, the view angle from the normal (degrees)</text>")
-    parts.append(f"<text x='12' y='{top + ph / 2}' transform='rotate(-90 12 {top + ph / 2})' "
-                 "text-anchor='middle'>directional albedo (luminance)</text>")
+    xy = svg.view_angle_axes(parts, (left, top, pw, ph), height, y_max,
+                             "directional albedo (luminance)")
     styles = (("total", ""), ("specular", " stroke-dasharray='6 3'"),
               ("diffuse", " stroke-dasharray='2 2'"))
     y = top + 10
@@ -136,14 +116,10 @@ def albedo_svg(albedos: dict, labels: dict, title: str = "", width: int = 640,
             pts = " ".join("%.1f,%.1f" % xy(t, e) for t, e in zip(tv, luminance(a[part])))
             parts.append(f"<polyline points='{pts}' fill='none' stroke='{colour}' "
                          f"stroke-width='1.6'{dash}/>")
-        parts.append(f"<line x1='{left + pw + 10}' y1='{y}' x2='{left + pw + 30}' y2='{y}' "
-                     f"stroke='{colour}' stroke-width='2'/><text x='{left + pw + 36}' "
-                     f"y='{y + 4}'>{html.escape(labels[tag])}</text>")
+        parts.append(svg.legend_entry(left + pw + 10, y + 4, labels[tag], colour))
         y += 15
     for part, dash in styles:
-        parts.append(f"<line x1='{left + pw + 10}' y1='{y + 6}' x2='{left + pw + 30}' "
-                     f"y2='{y + 6}' stroke='#333'{dash}/><text x='{left + pw + 36}' "
-                     f"y='{y + 10}'>{part}</text>")
+        parts.append(svg.legend_entry(left + pw + 10, y + 10, part, dash=dash, width=1.6))
         y += 15
     parts.append("</svg>")
     return "".join(parts)
