@@ -15,13 +15,13 @@ Conventions (n = +Z in the canonical frame):
   v = R_y(θh) (-d_x, -d_y, d_z); f_r = 0 where n.l <= 0 or n.v <= 0.
 - lobe: v = (sin θv, 0, cos θv), l = (sin θl, 0, cos θl) for θl from -90° to 90° (the mirror
   direction is at θl = -θv); the curve is f_r (n.l).
-- albedo: ∫ f (n.l) dl over the hemisphere at θv = (k + 0.5) 2°, by quadrature on a midpoint
-  grid of the unit square mapped through GGX's half-vector distribution (specular: the weight
-  4 (v.h) / (D (n.h))) and through the cosine distribution (diffuse: the weight π / (n.l)).
-  As the reference integrator does, the specular weight takes D from the model itself (its D
-  view at the same configuration): near a mirror's peak (α = 0.002) the shader's float32 n.h
-  resolves D only to a few per cent, and this way that rounding cancels (the plot's D slice
-  shows D itself).
+- albedo: ∫ f (n.l) dl over the hemisphere at θv = (k + 0.5) 2°: the specular part by the
+  DFG table's quadrature of GGX half vectors (ibl_bake.ggx_half_vectors; the weight
+  4 (v.h) / (D (n.h))), the diffuse part on a midpoint grid mapped through the cosine
+  distribution (the weight π / (n.l)). As the reference integrator does, the specular weight
+  takes D from the model itself (its D view at the same configuration): near a mirror's peak
+  (α = 0.002) the shader's float32 n.h resolves D only to a few per cent, and this way that
+  rounding cancels (the plot's D slice shows D itself).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ SLICE_PHI_D = 90.0                   # degrees
 LOBE_VIEW_ANGLES = (0.0, 30.0, 60.0, 75.0)
 LOBE_STEPS = 361                     # θl from -90° to 90° in 0.5° steps
 ALBEDO_ANGLES = 45                   # θv = 1°, 3°, ..., 89°
-ALBEDO_GRID = (64, 128)              # the quadrature's (u1, u2) midpoint grid
+ALBEDO_GRID = (128, 64)              # the specular quadrature's (theta_h, phi) grid
 PACK_WIDTH = 512                     # the render's width: every configuration one pixel
 
 # What a slice can show: the BRDF ("f_r", the sum of the model's specular_brdf and
@@ -134,36 +134,30 @@ def _views(theta_v_deg) -> np.ndarray:
     return np.stack([np.sin(tv), np.zeros_like(tv), np.cos(tv)], axis=-1)
 
 
-def ggx_d(cos_h: np.ndarray, alpha: float) -> np.ndarray:
-    """GGX's D (Walter et al. 2007, eq. 33), for the quadrature's weights only."""
-    a2 = alpha * alpha
-    d = cos_h * cos_h * (a2 - 1.0) + 1.0
-    return a2 / (np.pi * d * d)
+def specular_quadrature(theta_v_deg, alpha: float, grid=ALBEDO_GRID):
+    """(l, v, weight), each (len(θv), nu * nphi[, 3]): ∫ f (n.l) dl ≈ Σ f(l) (n.l) weight / D,
+    with D the GGX D at l's half vector. The half vectors are the DFG table's quadrature
+    (ibl_bake.ggx_half_vectors: GGX-distributed, only those whose l is above the horizon, on
+    one side of the plane of n and v, the BRDF being symmetric about it), of density D (n.h)
+    in h and D (n.h) / (4 (v.h)) in l: weight = 4 (v.h) / (n.h) times the quadrature's."""
+    from .ibl_bake import ggx_half_vectors
+    tv = np.radians(np.asarray(theta_v_deg, dtype=np.float64))
+    q = ggx_half_vectors(np.cos(tv), alpha, *grid)
+    shape = q["phi"].shape
+    nh, sh, phi, vh, sv, w = (np.broadcast_to(q[k], shape)
+                              for k in ("nh", "sh", "phi", "vh", "sv", "weight"))
+    h = np.stack([sh * np.cos(phi), sh * np.sin(phi), nh], axis=-1)
+    v = np.stack([sv, np.zeros(shape), np.broadcast_to(np.cos(tv)[:, None, None], shape)],
+                 axis=-1)
+    l = 2.0 * vh[..., None] * h - v
+    weight = 4.0 * vh / nh * w
+    n = len(tv)
+    return l.reshape(n, -1, 3), v.reshape(n, -1, 3), weight.reshape(n, -1)
 
 
-def specular_quadrature(theta_v_deg, alpha: float, grid=ALBEDO_GRID, with_d: bool = True):
-    """(l, v, weight), each (len(θv), nu * nphi[, 3]): ∫ f (n.l) dl ≈ Σ f(l) (n.l) weight.
-    h is GGX-distributed (density D (n.h), Walter et al. 2007, eq. 35-36) and l its mirror
-    of v, of density D (n.h) / (4 (v.h)); l under the surface has weight 0. Without
-    ``with_d`` the weight leaves D out, 4 (v.h) / (n.h) / N: the caller divides by D."""
-    u1, u2 = (a.ravel() for a in _grid(*grid))
-    tan2 = alpha * alpha * u1 / (1.0 - u1)
-    cos_h = 1.0 / np.sqrt(1.0 + tan2)
-    sin_h = np.sqrt(tan2) * cos_h
-    phi = 2.0 * np.pi * u2
-    h = np.stack([sin_h * np.cos(phi), sin_h * np.sin(phi), cos_h], axis=-1)
-    v = np.broadcast_to(_views(theta_v_deg)[:, None, :], (len(theta_v_deg), len(u1), 3))
-    vh = np.sum(v * h[None], axis=-1)
-    l = 2.0 * vh[..., None] * h[None] - v
-    pdf = (ggx_d(cos_h, alpha) if with_d else 1.0) * cos_h[None] / \
-        (4.0 * np.maximum(vh, 1e-300))
-    ok = (vh > 0) & (l[..., 2] > 0)
-    weight = np.where(ok, 1.0 / (np.maximum(pdf, 1e-300) * len(u1)), 0.0)
-    return l, np.ascontiguousarray(v), weight
-
-
-def diffuse_quadrature(theta_v_deg, grid=ALBEDO_GRID):
-    """(l, v, weight) as specular_quadrature, l cosine-distributed (Malley's method)."""
+def diffuse_quadrature(theta_v_deg, grid=(32, 64)):
+    """(l, v, weight), each (len(θv), nu * nphi[, 3]): ∫ f (n.l) dl ≈ Σ f(l) (n.l) weight,
+    l cosine-distributed (Malley's method) on a midpoint grid."""
     u1, u2 = (a.ravel() for a in _grid(*grid))
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
     l1 = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u1)], axis=-1)
@@ -337,7 +331,7 @@ def layout(settings: PlotSettings) -> Layout:
     """The slice, the lobes and the two albedo quadratures, in one layout."""
     sets = {"slice": slice_geometry(), "lobe": lobe_geometry()}
     tv = albedo_angles()
-    l, v, w_s = specular_quadrature(tv, settings.alpha, with_d=False)
+    l, v, w_s = specular_quadrature(tv, settings.alpha)
     sets["albedo_specular"] = (l, v)
     l, v, w_d = diffuse_quadrature(tv)
     sets["albedo_diffuse"] = (l, v)
@@ -384,5 +378,6 @@ def assemble(lay: Layout, values: dict, views=(), d_view=None) -> dict:
 
 def _integrate(values: np.ndarray, lay: Layout, name: str) -> np.ndarray:
     """Σ f (n.l) weight over each θv's quadrature points; (len(θv), 3)."""
-    nl = np.maximum(lay.cos_l[name], 0.0)
-    return np.sum(values.astype(np.float64) * (nl * lay.weights[name])[..., None], axis=1)
+    w = np.maximum(lay.cos_l[name], 0.0) * lay.weights[name]
+    terms = np.where((w > 0)[..., None], values.astype(np.float64) * w[..., None], 0.0)
+    return np.sum(terms, axis=1)

@@ -178,18 +178,18 @@ def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) ->
 # ---------------------------------------------------------------------------------------
 # The DFG table (independent of the HDRI: cached once per model version)
 
-def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int,
-                         centroid: bool = False):
-    """A(n.v), B(n.v) at one perceptual roughness: integral f_s (n.l) dl = F0 A + B.
+def ggx_half_vectors(nv: np.ndarray, a: float, nu: int, nphi: int) -> dict:
+    """The quadrature of the DFG table, for any integrand g(h) over GGX half vectors:
+    Σ g(h) weight ≈ ∫ g(h) D(h) (n.h) dω_h over the half vectors whose mirror l of v lies
+    above the horizon, for g symmetric about the plane of n and v (n = z, v in xz).
 
     Half vectors h follow D(h)(n.h) (Walter et al. 2007, eq. 35-36: tan^2 theta_h =
-    a^2 u / (1 - u)), so each sample adds F G (v.h) / ((n.h)(n.v)) (Karis 2013), with
-    F = F0 (1 - Fc) + Fc, Fc = (1 - v.h)^5. Quadrature, not sampling: u = 1 - (1 - s)^3 on a
-    midpoint grid in s (fine where the GGX tail meets the horizon), and for each u the
-    azimuths that keep l above the horizon, |phi| < phi_max, where
+    a^2 u / (1 - u)). Quadrature, not sampling: u = 1 - (1 - s)^3 on a midpoint grid in s
+    (fine where the GGX tail meets the horizon), and for each u the azimuths that keep l above
+    the horizon, 0 <= phi < phi_max, where
     n.l = 2 (v.h)(n.h) - n.v > 0  <=>  cos phi > (n.v / (2 n.h) - (n.v)(n.h)) / (sin_v sin_h);
-    so the integrand has no discontinuity inside the grid. n = z, v in the xz plane."""
-    a = max(pr * pr, MIN_ALPHA)
+    so the integrand has no discontinuity inside the grid. Arrays of shape (len(nv), nu, nphi)
+    (broadcast): nh, sh (sin theta_h), phi, vh, nl, sv (sin theta_v) and weight."""
     s = (np.arange(nu) + 0.5) / nu
     u = (1.0 - (1.0 - s) ** 3)[None, :, None]
     du = (3.0 * (1.0 - s) ** 2)[None, :, None]
@@ -204,6 +204,19 @@ def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi:
     phi = ((np.arange(nphi) + 0.5) / nphi)[None, None, :] * phi_max
     vh = np.clip(sv * sh * np.cos(phi) + nv * nh, 0.0, 1.0)
     nl = np.clip(2.0 * vh * nh - nv, 0.0, 1.0)
+    return {"nh": nh, "sh": sh, "phi": phi, "vh": vh, "nl": nl, "sv": sv,
+            "weight": du * phi_max / (np.pi * nu * nphi)}
+
+
+def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int,
+                         centroid: bool = False):
+    """A(n.v), B(n.v) at one perceptual roughness: integral f_s (n.l) dl = F0 A + B, each
+    half vector of ggx_half_vectors adding F G (v.h) / ((n.h)(n.v)) (Karis 2013), with
+    F = F0 (1 - Fc) + Fc, Fc = (1 - v.h)^5."""
+    a = max(pr * pr, MIN_ALPHA)
+    q = ggx_half_vectors(nv, a, nu, nphi)
+    nh, sh, phi, vh, nl, sv = (q[k] for k in ("nh", "sh", "phi", "vh", "nl", "sv"))
+    nv = nv[:, None, None]
     if g_model == "smith_ggx_correlated":
         G = 2.0 * nl * nv / np.maximum(nl * np.sqrt(nv * nv * (1 - a * a) + a * a)
                                        + nv * np.sqrt(nl * nl * (1 - a * a) + a * a), 1e-30)
@@ -211,7 +224,7 @@ def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi:
         G = 2.0 * nl * nv / (nl * (nv * (1 - a) + a) + nv * (nl * (1 - a) + a) + 1e-5)
     else:
         G = np.minimum(1.0, 2.0 * nh * np.minimum(nv, nl) / np.maximum(vh, 1e-12))
-    weight = G * vh / (nh * nv) * du * phi_max / (np.pi * nu * nphi)
+    weight = G * vh / (nh * nv) * q["weight"]
     fc = (1.0 - vh) ** 5
     if centroid:
         # the lobe's f_s (n.l) centroid (F = 1) in the plane of n and v: x toward the mirror
