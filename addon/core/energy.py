@@ -65,9 +65,6 @@ def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list
     return curves
 
 
-_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d")
-
-
 def svg_plot(curves_by_g: dict, width: int = 710, height: int = 320) -> str:
     """Directional albedo against the view angle: one colour per smoothness, solid for the
     first curve set, dashed for the second, dotted for the third. A standalone <svg>."""
@@ -81,7 +78,7 @@ def svg_plot(curves_by_g: dict, width: int = 710, height: int = 320) -> str:
     for k, (g_model, curves) in enumerate(curves_by_g.items()):
         dash = dashes[k % len(dashes)]
         for i, curve in enumerate(curves):
-            colour = _COLOURS[i % len(_COLOURS)]
+            colour = svg.COLOURS[i % len(svg.COLOURS)]
             points = " ".join("%.1f,%.1f" % xy(t, e) for t, e in
                               zip(curve["theta_deg"], curve["albedo"]) if e is not None)
             parts.append(f"<polyline points='{points}' fill='none' stroke='{colour}' "

@@ -19,7 +19,7 @@ from .errors import UserError
 from .files import atomic_paths, json_text
 from .hdri import write_float_exr
 from . import raster_figures, svg
-from .raster_figures import COLOURS, DASHES
+from .svg import COLOURS, DASHES
 
 
 def _units_note(settings) -> str:
@@ -30,7 +30,8 @@ def _units_note(settings) -> str:
 # SVG
 
 def _dash(k: int) -> str:
-    return f" stroke-dasharray='{DASHES[k % len(DASHES)]}'" if DASHES[k % len(DASHES)] else ""
+    pattern = DASHES[k % len(DASHES)]
+    return f" stroke-dasharray='{' '.join(map(str, pattern))}'" if pattern else ""
 
 
 def lobe_svg(lobes: dict, labels: dict, title: str = "", width: int = 640,
@@ -225,7 +226,12 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
     if extra:
         data["renderer"] = extra
     paths = [out / n for n in names]
-    with atomic_paths(*paths) as staged:
+    blocked = [p.name for p in paths if p.exists() and not p.is_file()]
+    if blocked:
+        raise UserError(f"{out} holds a folder named {blocked[0]}, where the plot writes a "
+                        "file; choose another --out")
+    earlier = _earlier_files(out)
+    with atomic_paths(*paths) as staged:      # renamed in order: plot.json, the index, last
         where = dict(zip(names, staged))
         for n, values in exrs.items():
             write_float_exr(where[f"{n}.exr"], values)
@@ -234,4 +240,17 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
         for n, canvas in pngs.items():
             canvas.save_png(where[n])
         where["plot.json"].write_text(json_text(data), encoding="utf-8")
+    for name in earlier - set(names):         # an earlier plot's variants and views
+        (out / name).unlink(missing_ok=True)
     return data
+
+
+def _earlier_files(out: Path) -> set:
+    """The files an earlier plot in ``out`` wrote (its plot.json's list; plain names only)."""
+    import json
+    try:
+        files = json.loads((out / "plot.json").read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
+    return {f for f in files if isinstance(f, str) and f == Path(f).name
+            and (out / f).is_file()}

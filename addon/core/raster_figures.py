@@ -12,10 +12,8 @@ import numpy as np
 from . import brdf_plot as bp
 from .brdf_plot import VIEW_TITLES, luminance, slice_name
 from .raster import Canvas, colormap, diverging
+from .svg import COLOURS, DASHES
 
-# one colour per lobe view angle or per variant; variants of a lobe are told apart by dashes
-COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d")
-DASHES = ("", "6 3", "2 2", "8 3 2 3")
 SLICE_DECADES = 7                     # a log slice shows max / 10^7 .. max
 SCALE = 4                              # screen pixels per slice pixel
 BLACK, GREY, LIGHT = (0.0, 0.0, 0.0), (0.4, 0.4, 0.4), (0.88, 0.88, 0.88)
@@ -131,7 +129,7 @@ def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
                width=3)
         for k, values in enumerate(lobes.values()):
             rho = luminance(values[i]) / peak
-            dash = tuple(float(x) for x in DASHES[k % len(DASHES)].split()[:2]) or None
+            dash = DASHES[k % len(DASHES)] or None
             c.line(list(zip(cx + r * rho * np.sin(theta_l), cy - r * rho * np.cos(theta_l))),
                    colour, width=1.8, dash=dash)
     c.text(10, 20, title, size=13)
@@ -142,7 +140,7 @@ def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
         y += 16
     y = 40
     for k, tag in enumerate(lobes):
-        dash = tuple(float(x) for x in DASHES[k % len(DASHES)].split()[:2]) or None
+        dash = DASHES[k % len(DASHES)] or None
         x0 = width - 12 - max(c.text_width(labels[t], 11) for t in lobes) - 30
         c.line([(x0, y - 4), (x0 + 24, y - 4)], BLACK, width=1.8, dash=dash)
         c.text(x0 + 30, y, labels[tag], size=11)
@@ -217,6 +215,8 @@ def figures(settings, results: dict, title: str) -> dict:
     out[slice_name() + ".png"] = slice_figure(base["slice"]["f_r"], f"{name}: {title}", log)
     for view in settings.views:
         name, log = VIEW_TITLES[view]
+        if view in bp.BRDF_VIEWS and settings.units == "unity":
+            name += " x π (Unity's units)"
         out[slice_name(view) + ".png"] = slice_figure(base["slice"][view], name, log)
     for tag in tags:
         values = results[tag]["slice"]["f_r"]

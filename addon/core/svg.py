@@ -5,6 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
+# one colour per curve set (Dark2); the dash patterns (on, off) tell a lobe plot's variants
+# apart: five are the most a plot has (its model and four --compare variants)
+COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d")
+DASHES = ((), (7, 3), (2, 2), (12, 3), (1, 4), (4, 6))
+
 
 def document(width: int, height: int) -> list:
     """The opening of a standalone <svg> on white, as a list of parts ("</svg>" closes it)."""
