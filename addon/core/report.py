@@ -144,18 +144,22 @@ def furnace_section(furnace: dict) -> str:
 
 
 PLOTS_NOTE = """<p>The BRDF itself, evaluated by the OSL shader's own code at one configuration
-per pixel (<code>ctlab plot</code>, docs/model.md "BRDF plots"), for four spheres of this job:
-the &theta;<sub>h</sub> &times; &theta;<sub>d</sub> slice of f<sub>r</sub> = f<sub>d</sub> +
-f<sub>s</sub> at &phi;<sub>d</sub> = 90&deg; (Burley 2012; log scale, 7 decades below the
-maximum) for this model and for the other G models, each G's relative difference from this
-model, and the lobes f<sub>r</sub> (n&middot;l) in the incidence plane with the directional
-albedo (solid: this model; dashed and dotted: the other G models). The Cook-Torrance G is
-min(1, 2(n&middot;h)(n&middot;v)/(v&middot;h), 2(n&middot;h)(n&middot;l)/(v&middot;h)): at
-&phi;<sub>d</sub> = 90&deg; it is min(1, 2 cos&sup2;&theta;<sub>h</sub>), which is 1 up to
-&theta;<sub>h</sub> = 45&deg; whatever &theta;<sub>d</sub>, where Smith's G falls toward grazing
-&theta;<sub>d</sub>; that is where the difference slices are red. A dielectric's total albedo
-can exceed 1 at grazing views: the model's diffuse is the fixed 0.96 &times; albedo of Unity's
-Standard shader, not reduced where the specular's Fresnel term grows.</p>"""
+per pixel (<code>ctlab plot</code>, docs/model.md "BRDF plots"), for up to four spheres of this
+job (a smooth and a rough metal and dielectric): the &theta;<sub>h</sub> &times;
+&theta;<sub>d</sub> slice of f<sub>r</sub> = f<sub>d</sub> + f<sub>s</sub> at
+&phi;<sub>d</sub> = 90&deg; (Burley 2012; log scale, 7 decades below the maximum) for this
+model and for the other G models, and each one's relative difference from this model (red:
+the other G gives more, blue: less); then the lobes f<sub>r</sub> (n&middot;l) in the
+incidence plane (a colour per view angle; solid this model, dashed and dotted the other G
+models) and the directional albedo (a colour per G model; solid the total, dashed the
+specular part, dotted the diffuse part). At &phi;<sub>d</sub> = 90&deg; the Cook-Torrance G,
+min(1, 2(n&middot;h)(n&middot;v)/(v&middot;h), 2(n&middot;h)(n&middot;l)/(v&middot;h)), is
+min(1, 2 cos&sup2;&theta;<sub>h</sub>): 1 up to &theta;<sub>h</sub> = 45&deg; whatever
+&theta;<sub>d</sub>, where Smith's G falls toward grazing &theta;<sub>d</sub> (blue in the
+difference slices), and below 1 beyond 45&deg;, where Smith's is larger at small
+&theta;<sub>d</sub> (red). A dielectric's total albedo can exceed 1 at grazing views: the
+model's diffuse is the fixed 0.96 &times; albedo of Unity's Standard shader, not reduced where
+the specular's Fresnel term grows.</p>"""
 
 
 def plots_section(plots) -> str:

@@ -191,7 +191,10 @@ def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | N
     for name, label, plot in report_plots(base):
         events.check()
         events.note(f"BRDF plot: {label}")
-        plots.append((label, f"plots/{name}", run_plot(plot, out / "plots" / name)))
+        # the plot's own steps are notes here; a cancel stops it between its renders
+        inner = Events(note=_nothing, cancelled=events.cancelled)
+        plots.append((label, f"plots/{name}", run_plot(plot, out / "plots" / name, inner,
+                                                        verbose)))
     events.progress(steps, steps, "writing the report")
     report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
                                 for cmp_dir, a, b in MATRIX_COMPARISONS[:5]],
