@@ -106,6 +106,9 @@ CLI_CASES = {
                           "the model takes at most 1e+09"),
     # ctlab plot
     "plot-metallic-range": (["plot", "--metallic", "2"], "metallic 2.0 out of range; use 0 to 1"),
+    "plot-metallic-negative": (["plot", "--metallic", "-0.5"],
+                               "metallic -0.5 out of range; use 0 to 1"),
+    "plot-metallic-nan": (["plot", "--metallic", "nan"], "metallic nan out of range"),
     "plot-smoothness-nonfinite": (["plot", "--smoothness", "inf"],
                                   "smoothness inf out of range; use 0 to 1"),
     "plot-albedo-range": (["plot", "--albedo", "-1,0,0"], "albedo -1.0 out of range"),

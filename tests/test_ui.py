@@ -513,6 +513,21 @@ def test_brdf_plot_of_the_active_material(addon, tmp_path):
     argv, notes = operators.plot_command(node, tmp_path)
     assert any("smoothness is linked" in n for n in notes)
 
+    # a plot that fails in its process (a folder where it writes lobe.svg) says why, and
+    # the image keeps the last plot
+    (tmp_path / "d" / "lobe.svg").mkdir(parents=True)
+    assert bpy.ops.ctlab.brdf_plot(directory=str(tmp_path / "d")) == {'FINISHED'}
+    start = time.monotonic()
+    while operators.JOBS["plot"].poll() == "running":
+        assert time.monotonic() - start < 300
+        time.sleep(0.2)
+    operators._job_tick()
+    wm = bpy.context.window_manager
+    assert wm.ctlab_plot_state == "failed" and "holds a folder named lobe.svg" in \
+        wm.ctlab_plot_message, wm.ctlab_plot_message
+    assert not (tmp_path / "d" / "plot.json").exists()
+    assert bpy.data.images[operators.PLOT_IMAGE].filepath.endswith("b/plot.png")
+
     cube.active_material = bpy.data.materials["Material"]
     with pytest.raises(RuntimeError, match="poll"):
         bpy.ops.ctlab.brdf_plot(directory=str(tmp_path / "c"))

@@ -448,7 +448,12 @@ def _job_tick():
                     not bpy.app.background:
                 bpy.ops.wm.url_open(url=job.report.as_uri())
             elif kind == "plot" and state == "done":
-                show_plot(job.out_dir / "plot.png")
+                try:
+                    show_plot(job.out_dir / "plot.png")
+                except (RuntimeError, OSError) as exc:     # the file went away meanwhile
+                    job.state = "failed"
+                    wm.ctlab_plot_message, wm.ctlab_plot_state = \
+                        f"cannot open plot.png: {exc}", "failed"
     for window in wm.windows:
         for area in window.screen.areas:
             if area.type in ('VIEW_3D', 'PROPERTIES', 'IMAGE_EDITOR'):
@@ -464,11 +469,15 @@ def _start_tick() -> None:
 def show_plot(path: Path) -> bpy.types.Image:
     """The plot's PNG as the image PLOT_IMAGE (reloaded when it exists), shown in every open
     Image Editor."""
+    if not Path(path).is_file():
+        raise OSError(f"{path} does not exist")
     image = bpy.data.images.get(PLOT_IMAGE)
     if image is None:
         image = bpy.data.images.load(str(path))
         image.name = PLOT_IMAGE
     else:
+        if image.packed_file is not None:          # packed by the user: show the new file
+            image.unpack(method='REMOVE')
         image.filepath = str(path)
         image.reload()
     for window in bpy.context.window_manager.windows:
@@ -573,7 +582,7 @@ def default_plot_folder() -> str:
     """The add-on's user folder (the extension's, or beside the cache): never the install
     folder."""
     from ..core.cache import cache_dir
-    return str(cache_dir().parent / "brdf_plot")
+    return str(cache_dir().parent / "cook-torrance-lab-brdf-plot")
 
 
 def plot_command(node, out: Path, compare_g: bool = False) -> tuple:
