@@ -215,7 +215,7 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
     exrs.update({slice_name(tag=tag): results[tag]["slice"]["f_r"] for tag in tags if tag})
     lobes = {tag: results[tag]["lobe"] for tag in tags}
     albedos = {tag: results[tag]["albedo"] for tag in tags}
-    title = (f"metallic {settings.metallic:g}, smoothness {settings.smoothness:g}"
+    title = (f"metallic {settings.metallic:.3g}, smoothness {settings.smoothness:.3g}"
              + _units_note(settings))
     texts = {"lobe.svg": lobe_svg(lobes, labels, "Lobes: " + title),
              "albedo.svg": albedo_svg(albedos, labels, "Directional albedo: " + title),
