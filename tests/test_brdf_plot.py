@@ -70,14 +70,17 @@ def lobe_cosines():
 
 def tolerance(want, nl, nv, nh, vh, alpha, floor=1e-5):
     """Relative 1e-5, widened by the conditioning of the formulas on float32 inputs: an
-    error of ~EPS32 in each cosine moves f by (1/n.l + 1/n.v + 1/v.h + 5 + cond_D) EPS32,
+    absolute error e in each cosine moves f by (1/n.l + 1/n.v + 1/v.h + 5 + cond_D) e,
     cond_D = 4 (n.h)^2 |a^2 - 1| / ((n.h)^2 (a^2 - 1) + 1) (D's denominator cancels near
-    the peak; the term-view tests use the same bound)."""
+    the peak; the term-view tests use the same bound). e = 8 EPS32 = 4.8e-7: Blender 4.5's
+    OSL computes the cosines to about 16 EPS32 (its G at td = 88.5 deg, where v.h = 0.026,
+    was 7e-5 off, the node group's and 5.2's OSL 1e-5), within the 2 e a ratio of two of
+    them allows."""
     a2 = alpha * alpha
     cond_d = 4 * nh ** 2 * abs(a2 - 1) / (nh ** 2 * (a2 - 1) + 1)
     with np.errstate(divide="ignore"):
         k = 1 / nl + 1 / nv + 1 / vh + 5 + cond_d
-    rel = floor + 4 * EPS32 * k
+    rel = floor + 8 * EPS32 * k
     return rel[..., None] * np.abs(want) + 1e-12
 
 
@@ -244,15 +247,17 @@ def test_the_slice_is_the_model_at_each_half_and_difference_angle(evaluated, sha
 
 
 def test_the_osl_shader_and_the_node_group_give_the_same_slice(evaluated):
-    """1e-5 relative, widened only by the formulas' conditioning on float32 inputs."""
+    """1e-5 relative, widened only by the formulas' conditioning on float32 inputs: each
+    implementation within ``tolerance`` of the model, so the two within twice that (the
+    worst pixel, on 4.5 at td 88.5 deg, needed 1.02 times the single allowance)."""
     s, out = evaluated
     cos = slice_cosines()
     a, b = out["osl"][""]["slice"]["f_r"], out["nodes"][""]["slice"]["f_r"]
-    assert not (np.abs(a - b) > tolerance(a, *cos, s.alpha)).any()
+    assert not (np.abs(a - b) > 2 * tolerance(a, *cos, s.alpha)).any()
     la, lb = out["osl"][""]["lobe"], out["nodes"][""]["lobe"]
     nl, nv, nh, vh = lobe_cosines()
     ok = nl > 1e-3
-    assert (np.abs(la - lb) <= tolerance(la, nl, nv, nh, vh, s.alpha))[ok].all()
+    assert (np.abs(la - lb) <= 2 * tolerance(la, nl, nv, nh, vh, s.alpha))[ok].all()
 
 
 def test_osl_and_nodes_agree_with_energy_compensated():
@@ -264,7 +269,7 @@ def test_osl_and_nodes_agree_with_energy_compensated():
     cos = slice_cosines()
     alpha = bp.PlotSettings(**kw).alpha
     assert not (np.abs(a["slice"]["f_r"] - b["slice"]["f_r"]) >
-                tolerance(a["slice"]["f_r"], *cos, alpha, floor=3e-4)).any()
+                2 * tolerance(a["slice"]["f_r"], *cos, alpha, floor=1.5e-4)).any()
     np.testing.assert_allclose(a["albedo"]["total"], b["albedo"]["total"], rtol=3e-4)
     uncompensated = pipeline.evaluate_plot(bp.PlotSettings(**dict(kw, energy="none")))[""]
     gain = a["albedo"]["specular"] / uncompensated["albedo"]["specular"]
