@@ -87,12 +87,7 @@ def render(scene: bpy.types.Scene, log_path=None) -> np.ndarray:
     (H, W, 3), row 0 the top. The image passes through a private temporary folder, removed
     after."""
     from ..core.compare import read_image
-    from ..core.errors import UserError
-    with renderer.quiet(log_path):
-        bpy.ops.render.render(write_still=False)
-    result = bpy.data.images.get("Render Result")
-    if result is None:
-        raise UserError("Blender produced no image (run with --verbose to see its output)")
+    result = renderer.render_result(log_path)
     folder = Path(tempfile.mkdtemp(prefix="ctlab-pixels-"))
     try:
         path = folder / "pixels.exr"

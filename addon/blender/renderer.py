@@ -169,16 +169,22 @@ def cycles_times(exr_path: Path) -> dict:
     return out
 
 
+def render_result(log_path=None) -> bpy.types.Image:
+    """Render the current scene's camera; its Render Result image."""
+    with quiet(log_path):
+        bpy.ops.render.render(write_still=False)
+    result = bpy.data.images.get("Render Result")
+    if result is None:
+        raise UserError("Blender produced no image (run with --verbose to see its output)")
+    return result
+
+
 def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=None) -> dict:
     """Render the scene's camera and write the three outputs into ``out_dir`` whole."""
     out_dir = check_writable(out_dir)
     start = time.perf_counter()
-    with quiet(log_path):
-        bpy.ops.render.render(write_still=False)
+    result = render_result(log_path)
     elapsed = time.perf_counter() - start
-    result = bpy.data.images.get("Render Result")
-    if result is None:
-        raise UserError("Blender produced no image (run with --verbose to see its output)")
     with atomic_paths(*(out_dir / name for name in OUTPUT_FILES)) as (exr, png, js):
         with quiet(log_path):
             _save(scene, result, exr, "exr")

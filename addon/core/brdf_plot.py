@@ -307,6 +307,7 @@ class Layout:
     l: np.ndarray = None               # (H, W, 3): the direction toward the light, likewise
     weights: dict = field(default_factory=dict)       # the quadratures' weights
     cos_l: dict = field(default_factory=dict)         # n.l of each set's configurations
+    cos_v: dict = field(default_factory=dict)         # and n.v
 
     @property
     def count(self) -> int:
@@ -337,7 +338,8 @@ def layout(settings: PlotSettings) -> Layout:
     sets["albedo_diffuse"] = (l, v)
     shapes = {name: lv[0].shape[:-1] for name, lv in sets.items()}
     out = Layout(shapes, weights={"albedo_specular": w_s, "albedo_diffuse": w_d},
-                 cos_l={name: lv[0][..., 2] for name, lv in sets.items()})
+                 cos_l={name: lv[0][..., 2] for name, lv in sets.items()},
+                 cos_v={name: lv[1][..., 2] for name, lv in sets.items()})
     w, h = out.size
     n_img = np.zeros((h * w, 3))
     l_img = np.zeros((h * w, 3))
@@ -362,13 +364,11 @@ def assemble(lay: Layout, values: dict, views=(), d_view=None) -> dict:
     d = lay.unpack(values.get(WEIGHT_VIEW, d_view))["albedo_specular"][..., 0]
     f_r = {name: parts["specular_brdf"][name] + parts["diffuse_brdf"][name]
            for name in lay.shapes}
-    l, v = slice_geometry()
-    valid = ((l[..., 2] > 0) & (v[..., 2] > 0))[..., None]
+    valid = ((lay.cos_l["slice"] > 0) & (lay.cos_v["slice"] > 0))[..., None]
     out = {"slice": {"f_r": np.where(valid, f_r["slice"], 0.0).astype(np.float32)}}
     for view in views:
         out["slice"][view] = parts[view]["slice"].astype(np.float32)
-    l, v = lobe_geometry()
-    out["lobe"] = f_r["lobe"].astype(np.float64) * np.maximum(l[..., 2], 0.0)[..., None]
+    out["lobe"] = f_r["lobe"].astype(np.float64) * np.maximum(lay.cos_l["lobe"], 0.0)[..., None]
     spec = _integrate(parts["specular_brdf"]["albedo_specular"] /
                       np.maximum(d, 1e-30)[..., None].astype(np.float64), lay, "albedo_specular")
     diff = _integrate(parts["diffuse_brdf"]["albedo_diffuse"], lay, "albedo_diffuse")
