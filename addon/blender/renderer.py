@@ -41,12 +41,17 @@ def configure_eevee(scene: bpy.types.Scene, view: str, samples: int, pixel_centr
     scene.render.filter_size = 0.0 if exact else 1.5
 
 
+PATH_BOUNCES = 12            # Blender's default light paths, for the path-traced renders
+
+
 def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed: int = 0,
-              pixel_centres: bool = False, engine: str = "cycles") -> None:
+              pixel_centres: bool = False, engine: str = "cycles",
+              path_traced: bool = False) -> None:
     """Cycles on the CPU; OSL for the Cook-Torrance shader; no denoiser, no adaptive sampling
     and no clamping, so renders converge to the integral they estimate. Term views (and every
     view with ``pixel_centres``) take one sample at each pixel centre. ``engine`` "eevee"
-    renders the node group with EEVEE instead."""
+    renders the node group with EEVEE instead. ``path_traced``: the model's scene transport
+    (Cycles path traces its closures, with the world sampled as a light)."""
     if engine == "eevee":
         if shader != "nodes":
             raise UserError(f"EEVEE cannot render the {shader!r} shader here; use --shader nodes "
@@ -60,8 +65,7 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
     cy.shading_system = (shader == "osl")
     cy.use_denoising = False
     cy.use_adaptive_sampling = False
-    cy.sample_clamp_direct = 0.0
-    cy.sample_clamp_indirect = 0.0
+    set_exact_path_tracing(scene)
     cy.seed = seed
     cy.use_animated_seed = False
     if shader != "principled" and (view in EXACT_VIEWS or pixel_centres):
@@ -73,12 +77,42 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
         cy.pixel_filter_type = 'BLACKMAN_HARRIS'
         cy.filter_width = 1.5
     if shader != "principled":
-        cy.max_bounces = 0             # the shader integrates the lighting itself
+        # the lab shader integrates the lighting itself; the scene transport is path traced
+        cy.max_bounces = PATH_BOUNCES if path_traced else 0
     if scene.world is not None:
-        scene.world.cycles.sampling_method = 'NONE' if _only_the_model(scene) else 'AUTOMATIC'
+        scene.world.cycles.sampling_method = 'NONE' if not path_traced and \
+            _only_the_model(scene) else 'AUTOMATIC'
     scene.render.film_transparent = False
     scene.render.use_persistent_data = False
     _view_transform(scene, view)
+
+
+# The settings under which Cycles' path tracing converges to the integral of the closures:
+# no clamping, no glossy filter (it blurs a glossy lobe seen after a diffuse or rough bounce)
+# and reflective caustics traced (docs/model.md "Light transport").
+EXACT_PATH_TRACING = {"sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0,
+                      "blur_glossy": 0.0, "caustics_reflective": True}
+
+
+def set_exact_path_tracing(scene: bpy.types.Scene) -> None:
+    for key, value in EXACT_PATH_TRACING.items():
+        setattr(scene.cycles, key, value)
+
+
+def inexact_path_tracing(scene: bpy.types.Scene) -> list:
+    """The scene's Cycles settings that keep a path-traced render from converging to the
+    model (for the panel's warning): ``["Clamp Indirect 10", ...]``, empty when none."""
+    names = {"sample_clamp_direct": "Clamp Direct", "sample_clamp_indirect": "Clamp Indirect",
+             "blur_glossy": "Filter Glossy", "caustics_reflective": "Reflective Caustics off"}
+    out = []
+    for key, value in EXACT_PATH_TRACING.items():
+        have = getattr(scene.cycles, key)
+        if isinstance(value, bool):
+            if bool(have) != value:
+                out.append(names[key])
+        elif have != value:
+            out.append(f"{names[key]} {have:g}")
+    return out
 
 
 def _only_the_model(scene: bpy.types.Scene) -> bool:

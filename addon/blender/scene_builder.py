@@ -90,9 +90,9 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
     hdri = resolve_hdri(s.hdri)
     load_hdri(hdri)                               # a clear error for a bad HDRI, before any change
     tables, bake = {}, ""
-    if s.shader == "osl" and s.model.ibl == "reference":
-        tables = env_importance.tables_for(hdri)
-    elif s.shader != "principled" and s.model.ibl in BAKED_IBL_MODES:
+    if s.shader == "osl" and (s.model.ibl == "reference" or s.model.light_transport == "scene"):
+        tables = env_importance.tables_for(hdri)      # the reference IBL, the scene correction
+    if s.shader != "principled" and s.model.ibl in BAKED_IBL_MODES:
         bake = ibl_bake.bake(hdri, progress)
 
     remove_matrix(scene)

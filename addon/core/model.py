@@ -21,6 +21,23 @@ DIFFUSE_MODELS = ("disney", "lambert")
 # the energy that single scattering loses
 ENERGY_MODES = ("none", "compensated")
 UNITS = ("physical", "unity")
+# How the material is lit (docs/model.md "Light transport"). lab: the model computes its own
+# light (the world's HDRI, the key Sun, the light slots) and emits it, exactly, as a pixel of a
+# view; scene: the model as Cycles closures, path traced with everything in the scene (objects,
+# bounces, mesh emitters, any world), plus an emission that corrects the closures to the model
+# for the world and the lights (a control variate) where Cycles has no closure for it.
+LIGHT_TRANSPORTS = ("lab", "scene")
+LIGHT_TRANSPORT_LABELS = {
+    "lab": ("Lab", "The model lights itself from the world's HDRI, the key Sun and the light "
+            "slots, exactly (term views, the matrix, parity); other objects are not seen"),
+    "scene": ("Scene", "Path traced by Cycles: reflects other objects, receives bounce and "
+              "mesh-emitter light, any world; exact for the world and the lights")}
+# Views the scene transport path traces; every other view is the lab's (a path tracer cannot
+# split direct from indirect light inside a material; Cycles' render passes do that).
+SCENE_VIEWS = ("full",)
+# The closures Cycles has: GGX with Schlick's Fresnel and the height-correlated Smith G, and
+# Burley's or Lambert's diffuse; the rest of the model goes through the correction.
+SCENE_EXACT_G = "smith_ggx_correlated"
 # reference: Monte Carlo against the HDRI (OSL only); split_sum (Karis 2013) and unity
 # (Unity's reflection-probe approximation) read the files baked by core.ibl_bake.
 IBL_MODES = ("reference", "split_sum", "unity", "split_sum_corrected")
@@ -106,6 +123,10 @@ OPTIONS = (
     Input("ibl", "IBL", "INT", 0, "0: split-sum; 1: Unity's approximation; 2: split-sum "
           "toward the dominant direction", osl="ibl", group="IBL Mode",
           max=len(BAKED_IBL_MODES) - 1, values=IBL_MODES),
+    Input("light_transport", "Light Transport", "INT", 0,
+          "0: lab (the model lights itself and emits the result); 1: scene (Cycles closures, "
+          "path traced, plus the model's correction for the world and the lights)",
+          osl="light_transport", group="Light Transport Scene", values=LIGHT_TRANSPORTS),
 )
 
 # The key light and the world, as drivers and the sync handler keep them (light_sync).
@@ -237,7 +258,8 @@ class ModelOptions:
     def __init__(self, view="full", g_model=G_MODELS[0], diffuse_model=DIFFUSE_MODELS[0],
                  units=UNITS[0], energy=ENERGY_MODES[0], ibl=IBL_MODES[0], env_samples=4,
                  env_visibility=False,
-                 sun_shadow=True, shadow_rays=True, seed=0):
+                 sun_shadow=True, shadow_rays=True, seed=0,
+                 light_transport=LIGHT_TRANSPORTS[0]):
         self.view = view
         self.g_model = g_model
         self.diffuse_model = diffuse_model
@@ -249,6 +271,7 @@ class ModelOptions:
         self.sun_shadow = bool(sun_shadow)
         self.shadow_rays = bool(shadow_rays)
         self.seed = int(seed)
+        self.light_transport = light_transport
         self.validate()
 
     def validate(self):
@@ -263,9 +286,36 @@ class ModelOptions:
             lo, hi, value = int(BY_KEY[key].min), int(BY_KEY[key].max), getattr(self, key)
             if not lo <= value <= hi:
                 raise UserError(f"{key.replace('_', ' ')} {value} out of range; use {lo} to {hi}")
+        problem = scene_transport_problem(self)
+        if problem:
+            raise UserError(problem)
+
+    def path_traced(self) -> bool:
+        """Whether Cycles path traces the material (the scene transport's full view)."""
+        return self.light_transport == "scene" and self.view in SCENE_VIEWS
 
     def as_dict(self):
         return dict(vars(self))
+
+
+def scene_transport_problem(options) -> str | None:
+    """Why these options cannot use the scene transport, or None. Unity's units scale direct
+    light by pi, which no closure does: they are lab-only (docs/model.md "Light
+    transport"). The IBL mode stays a lab setting: the scene transport path traces the world
+    (its correction integrates the HDRI as the reference IBL does)."""
+    if options.light_transport != "scene":
+        return None
+    if options.units != UNITS[0]:
+        return ("Unity's units (x pi on direct light) exist in the lab transport only; use "
+                "--units physical with --light-transport scene")
+    return None
+
+
+def scene_residual(g_model: str, energy: str) -> bool:
+    """Whether the scene transport needs its correction emission: the closures are the model
+    itself for the height-correlated Smith G without energy compensation (Burley's and
+    Lambert's diffuse both have a closure)."""
+    return g_model != SCENE_EXACT_G or energy != ENERGY_MODES[0]
 
 
 @dataclass

@@ -28,7 +28,7 @@ from . import pipeline
 from ..blender.renderer import ENGINES
 from ..core.errors import Cancelled, UserError
 from ..core.model import (DEFAULT_ALBEDO, DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IBL_MODES,
-                          MATRIX_ALBEDO, UNITS, VIEWS, ModelOptions)
+                          LIGHT_TRANSPORTS, MATRIX_ALBEDO, UNITS, VIEWS, ModelOptions)
 from ..core.settings import SHADERS, MatrixSettings
 
 EXIT_BAD_INPUT = 2
@@ -167,6 +167,10 @@ SCENE_ARGS = (
     Arg("--units", "units", "|".join(UNITS), str, UNITS[0]),
     Arg("--energy", "energy", "|".join(ENERGY_MODES) + " (compensated: Kulla-Conty multiple "
         "scattering)", str, ENERGY_MODES[0]),
+    Arg("--light-transport", "light_transport", "|".join(LIGHT_TRANSPORTS) + " (lab: the "
+        "model lights itself, exactly, from the HDRI, the Sun and the lights; scene: Cycles "
+        "path traces the model's closures, plus its correction for the world and the lights)",
+        str, LIGHT_TRANSPORTS[0]),
     Arg("--env-samples", "env_samples", "environment samples per shading point and render "
         "sample (each of BRDF and environment sampling)", int, 4),
     Arg("--env-visibility", "env_visibility",
@@ -222,7 +226,8 @@ def settings_from(args, shader: str, view: str) -> MatrixSettings:
     ibl = args.ibl or ("split_sum" if shader == "nodes" else IBL_MODES[0])
     model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
                          units=args.units, energy=args.energy, ibl=ibl, env_samples=args.env_samples,
-                         env_visibility=args.env_visibility, seed=args.seed)
+                         env_visibility=args.env_visibility, seed=args.seed,
+                         light_transport=args.light_transport)
     s = MatrixSettings(rows=rows, cols=cols, hdri=args.hdri, hdri_strength=args.hdri_strength,
                        hdri_rotation=args.hdri_rotation,
                        sun_to_light=parse_vector(args.sun_dir, 3, "sun direction"),
@@ -251,6 +256,9 @@ def cmd_render(args) -> None:
     if args.engine == "eevee" and args.shader != "nodes":
         raise UserError("--engine eevee renders the node group only; add --shader nodes")
     settings = settings_from(args, args.shader, views[0])
+    if args.pixel_centres and args.light_transport == "scene":
+        raise UserError("--pixel-centres renders one sample at each pixel centre; the scene "
+                        "transport is path traced: use --light-transport lab")
     from ..blender.paths import resolve_hdri
     from ..core.hdri import load_hdri
     load_hdri(resolve_hdri(settings.hdri))

@@ -76,7 +76,8 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
         if node is not None:
             model_node.set_options(node, model)
         renderer.configure(scene, settings.shader, view, samples, model.seed, pixel_centres,
-                           engine)
+                           engine, path_traced=settings.shader != "principled"
+                           and model.path_traced())
         description = renderer.render(scene, out_dir, description, log)
         if on_view:
             on_view(i, view, description)
