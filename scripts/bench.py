@@ -42,7 +42,7 @@ OUT = ROOT / "bench"
 CACHE = ROOT / "out" / "bench-cache"
 CTLAB = ROOT / "scripts" / "ctlab.py"
 BUNDLED = ("city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset")
-SECTIONS = ("render", "error", "main", "bake")
+SECTIONS = ("render", "error", "main", "bake", "scene")
 SCHEMA = 2                              # results.json's layout
 
 # The renderers, as ctlab render's arguments; Principled is every ratio's denominator.
@@ -345,6 +345,94 @@ def bake_table(section: dict) -> list:
                         f"max {section['bundled_1k_first_over_cached_max_seconds']} s."]
 
 
+# --- The scene transport in a real scene -------------------------------------------------
+
+# The sphere's material in the demo scene (addon/blender/demo_scene.py): Principled BSDF (the
+# denominator), and the model's scene transport with exact closures, with the correction, and
+# as the node group.
+SCENE_VARIANTS = {
+    "principled": None,
+    "osl scene (exact closures)": ("osl", {"g_model": "smith_ggx_correlated",
+                                           "diffuse_model": "lambert"}),
+    "osl scene (correction)": ("osl", {"g_model": "cook_torrance", "diffuse_model": "disney"}),
+    "nodes scene": ("nodes", {"g_model": "smith_ggx_correlated", "diffuse_model": "lambert",
+                              "ibl": "split_sum"}),
+}
+
+
+def bench_scene(quick: bool, work: Path) -> dict:
+    """Render time of the demo scene (a metal sphere beside a cube, an orange sphere, a floor,
+    an area light, an emissive panel, forest.exr) with each material for the metal sphere,
+    against Principled, in one process: each variant warmed up once (the OSL shader's
+    compilation), then rounds in alternating order; ratio = the median over rounds. Also the
+    world bake of a Sky Texture when the add-on has it."""
+    from addon.blender import demo_scene, light_sync, materials, renderer
+    from addon.core.model import ModelOptions
+    size, samples, rounds = ((128, 96), 16, 1) if quick else ((320, 240), 64, 3)
+    scene, sphere, other = demo_scene.build("hdri", *size)
+    demo_scene.set_material(other, demo_scene.principled_for(demo_scene.ORANGE, "Orange"))
+    mats = {}
+    for name, variant in SCENE_VARIANTS.items():
+        if variant is None:
+            mats[name] = demo_scene.principled_for(demo_scene.METAL)
+        else:
+            impl, model = variant
+            mats[name] = materials.model_material(
+                name, impl, ModelOptions(light_transport="scene", **model), **demo_scene.METAL)
+            demo_scene.set_material(sphere, mats[name])
+            light_sync.sync_material(mats[name], scene)
+
+    def timed(name, samples_):
+        demo_scene.set_material(sphere, mats[name])
+        shader = "principled" if SCENE_VARIANTS[name] is None else SCENE_VARIANTS[name][0]
+        renderer.configure(scene, shader, "full", samples_, path_traced=True)
+        d = renderer.render(scene, work / f"scene-{len(os.listdir(work))}",
+                            {"width": size[0], "height": size[1]})
+        return d["sync_seconds"] + d["cycles_render_seconds"]
+
+    for name in SCENE_VARIANTS:
+        timed(name, 1)                                  # warm-up: compile, load, build
+    times = {name: [] for name in SCENE_VARIANTS}
+    names = list(SCENE_VARIANTS)
+    for i in range(rounds):
+        for name in (names if i % 2 == 0 else names[::-1]):
+            times[name].append(timed(name, samples))
+            print(f"scene: {name}: {times[name][-1]:.2f} s", flush=True)
+    base = statistics.median(times["principled"])
+    out = {"scene": {"size": list(size), "samples": samples, "rounds": rounds,
+                     "objects": "metal sphere + orange sphere + red cube + floor + area light "
+                                "+ emissive panel, forest.exr"},
+           "seconds": {k: [round(t, 3) for t in v] for k, v in times.items()},
+           "ratio_over_principled": {k: round(statistics.median(v) / base, 3)
+                                     for k, v in times.items() if k != "principled"}}
+    try:
+        from addon.blender import world_bake
+    except ImportError:
+        world_bake = None
+    if world_bake is not None:
+        demo_scene.build("sky", 64, 48)
+        start = time.perf_counter()
+        world_bake.bake_world(bpy.context.scene.world, 1024)
+        out["sky_bake_seconds_1k"] = round(time.perf_counter() - start, 2)
+    return out
+
+
+def scene_table(section: dict) -> list:
+    sc = section["scene"]
+    lines = [f"The demo scene ({sc['objects']}), {sc['size'][0]}x{sc['size'][1]} px, "
+             f"{sc['samples']} samples, Cycles CPU, one process; render = Cycles' sync + "
+             f"render; ratio = median over {sc['rounds']} alternating rounds.", "",
+             "| sphere's material | seconds | / Principled |", "|---|---|---|"]
+    for name, secs in section["seconds"].items():
+        ratio = section["ratio_over_principled"].get(name)
+        lines.append(f"| {name} | {', '.join(f'{t:.2f}' for t in secs)} | "
+                     + ("1" if ratio is None else f"**{ratio:.2f}x**") + " |")
+    if "sky_bake_seconds_1k" in section:
+        lines += ["", f"World bake of a Sky Texture at 1024x512: "
+                      f"**{section['sky_bake_seconds_1k']:.2f} s** (cold)."]
+    return lines
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="smaller renders (a smoke run)")
@@ -369,6 +457,8 @@ def main():
                 results["error"] = bench_error(args.quick, work)
             elif section == "main":
                 results["main"] = bench_main(work)
+            elif section == "scene":
+                results["scene"] = bench_scene(args.quick, work)
             else:
                 results["bake"] = bench_bake()
             results[section]["machine"] = results["machine"]
@@ -398,6 +488,9 @@ def main():
             f"**{results['main']['wall_seconds']:.0f} s** wall (the whole process).", ""]
     if "bake" in results:
         lines += head("Bake (split-sum files)", "bake") + bake_table(results["bake"]) + [""]
+    if "scene" in results:
+        lines += head("The scene transport in a real scene", "scene") + \
+            scene_table(results["scene"]) + [""]
     (OUT / "results.md").write_text("\n".join(lines))
     print("\n".join(lines))
 

@@ -35,7 +35,7 @@ def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96,
     """Render the sphere matrix with the real pipeline; returns (linear image, scene dict).
     With a tuple of views: ({view: image}, scene), the scene built and compiled once."""
     model_keys = ("g_model", "diffuse_model", "units", "energy", "ibl", "env_samples",
-                  "env_visibility", "sun_shadow", "seed")
+                  "env_visibility", "sun_shadow", "seed", "light_transport")
     views = view if isinstance(view, tuple) else (view,)
     model = ModelOptions(view=views[0], **{k: kw.pop(k) for k in model_keys if k in kw})
     s = MatrixSettings(rows=grid[0], cols=grid[1], width=size, height=size, shader=shader,

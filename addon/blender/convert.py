@@ -77,9 +77,12 @@ def _invert_link(tree, dst: bpy.types.NodeSocket, src: bpy.types.NodeSocket, lab
     tree.links.new(_one_minus(tree, source, location, label), dst)
 
 
-def principled_to_model(mat: bpy.types.Material, scene: bpy.types.Scene, impl: str) -> list:
+def principled_to_model(mat: bpy.types.Material, scene: bpy.types.Scene, impl: str,
+                        light_transport: str = "scene") -> list:
     """Replace the material's Principled BSDF by the Cook-Torrance node; returns notes on
-    what could not be mapped. Raises UserError when the surface is not a Principled BSDF."""
+    what could not be mapped. Raises UserError when the surface is not a Principled BSDF.
+    The material is path traced as Principled was (the scene transport) unless
+    ``light_transport`` says "lab"."""
     bsdf = surface_principled(mat)
     if bsdf is None:
         raise UserError(f"material {mat.name!r}: its surface is not a Principled BSDF; "
@@ -119,6 +122,7 @@ def principled_to_model(mat: bpy.types.Material, scene: bpy.types.Scene, impl: s
     model_node.link_geometry_normal(tree, node)
     if impl == "nodes":
         model_node.set_option(node, "ibl", "split_sum")
+    model_node.set_option(node, "light_transport", light_transport)
     # the model emits its view: never sample it as a light (restored on the way back)
     mat[SAVED_EMISSION_SAMPLING] = mat.cycles.emission_sampling
     mat.cycles.emission_sampling = 'NONE'

@@ -318,6 +318,38 @@ def scene_residual(g_model: str, energy: str) -> bool:
     return g_model != SCENE_EXACT_G or energy != ENERGY_MODES[0]
 
 
+def transport_notes(impl: str, light_transport: str, view: str, units: str, g_model: str,
+                    diffuse_model: str, energy: str) -> list:
+    """What the material sees in its light transport, in words, for the material panel
+    (docs/model.md "Light transport"); ``impl`` "osl" or "nodes"."""
+    if light_transport == "lab":
+        return ["Lab: lit by the world's HDRI, the key Sun and the light slots, computed by "
+                "the model itself and shown as emission (exact; term views and Unity units",
+                "need it). It does not see other objects, bounce light or mesh emitters."]
+    notes = ["Scene: path traced by Cycles like any material: reflects other objects, gets "
+             "bounce light, mesh emitters, every light and any world."]
+    if view not in SCENE_VIEWS:
+        notes.append(f"The view {view!r} is the lab's (only the full view is path traced; "
+                     "Cycles' render passes split direct and indirect).")
+    exact = g_model == SCENE_EXACT_G and energy == ENERGY_MODES[0]
+    if impl == "osl":
+        if exact:
+            notes.append("Exact: Cycles' closures are this model (GGX, Schlick, Smith G, "
+                         f"{'Lambert' if diffuse_model == 'lambert' else 'Burley'} diffuse).")
+        else:
+            notes.append("Exact for the world's HDRI and the lights (a correction emission); "
+                         "light from other objects sees Smith's G without compensation.")
+    else:
+        parts = [p for p, on in (("Smith's G", g_model != SCENE_EXACT_G),
+                                 ("Lambert diffuse", diffuse_model != "lambert"),
+                                 ("Cycles' multiscatter GGX", energy != ENERGY_MODES[0])) if on]
+        notes.append("Node group: Metallic BSDF + Diffuse BSDF, exact for Smith's G, Lambert, "
+                     "no compensation" + (f"; here approximated by {', '.join(parts)}."
+                                          if parts else "."))
+        notes.append("EEVEE lights these closures approximately (probes, screen tracing).")
+    return notes
+
+
 @dataclass
 class Lighting:
     """What the model node must know of the scene's lights (the OSL shader cannot read other

@@ -13,7 +13,7 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        IntProperty, StringProperty)
 
 from . import preferences
-from .properties import VIEW_ITEMS
+from .properties import TRANSPORT_ITEMS, VIEW_ITEMS
 from ..blender import light_sync, model_node
 from ..blender.drivers import world_nodes
 from ..blender.scene_builder import build_matrix
@@ -37,12 +37,19 @@ class _progress:
     """The window manager's progress indicator (a no-op without a window), as a
     ``progress(fraction, message)`` callable."""
 
-    def __init__(self, context):
+    def __init__(self, context, status: str = ""):
         self.wm = context.window_manager if context.window else None
+        self.workspace = getattr(context, "workspace", None) if context.window else None
+        self.status = status
 
     def __enter__(self):
         if self.wm is not None:
             self.wm.progress_begin(0, 100)
+        if self.status:
+            print(f"Cook-Torrance Lab: {self.status}", flush=True)
+            if self.workspace is not None:
+                self.workspace.status_text_set(self.status)     # shown before the work
+                bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
         return self
 
     def __call__(self, fraction, message):
@@ -52,6 +59,8 @@ class _progress:
     def __exit__(self, *exc):
         if self.wm is not None:
             self.wm.progress_end()
+        if self.status and self.workspace is not None:
+            self.workspace.status_text_set(None)
 
 
 def _implementation(choice: str) -> str:
@@ -179,6 +188,8 @@ class CTLAB_OT_new_material(bpy.types.Operator):
 
     implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS,
                                  default="PREFERENCES")
+    light_transport: EnumProperty(name="Light Transport", items=TRANSPORT_ITEMS,
+                                  default="scene")
 
     def execute(self, context):
         impl = _implementation(self.implementation)
@@ -188,11 +199,14 @@ class CTLAB_OT_new_material(bpy.types.Operator):
             use_nodes(mat)
             tree = mat.node_tree
             tree.nodes.clear()
-            node = model_node.new_node(tree, impl)
+            with _progress(context, "Compiling the Cook-Torrance OSL shader (the first "
+                           "takes about 15 s)..." if impl == "osl" else ""):
+                node = model_node.new_node(tree, impl)
             model_node.connect_output(tree, node)
             model_node.link_geometry_normal(tree, node)
             if impl == "nodes":
                 model_node.set_option(node, "ibl", "split_sum")
+            model_node.set_option(node, "light_transport", self.light_transport)
             mat.cycles.emission_sampling = 'NONE'
             with _progress(context):
                 light_sync.sync_material(mat, context.scene)
@@ -229,6 +243,7 @@ class CTLAB_OT_add_node_group(bpy.types.Operator):
         tree = _tree_for_adding(context)
         node = model_node.new_node(tree, "nodes")
         model_node.set_option(node, "ibl", "split_sum")
+        model_node.set_option(node, "light_transport", "scene")    # an artist's material
         space = getattr(context, "space_data", None)
         if hasattr(space, "cursor_location"):
             node.location = space.cursor_location
@@ -397,6 +412,20 @@ class CTLAB_OT_set_view_all(bpy.types.Operator):
         return {'FINISHED'}
 
 
+def sync_summary(scene, count: int) -> str:
+    """What light sync did, in one line: the key Sun (if any), the lights in slots, the world."""
+    from ..blender import scene_lights
+    sun = light_sync.key_sun(scene)
+    used, unused = scene_lights.scene_lights(scene, exclude=sun)
+    lights = [f"the key Sun {sun.name}"] if sun else ["no key Sun"]
+    if used:
+        lights.append(f"{len(used)} light{'s' * (len(used) != 1)} in slots "
+                      f"({', '.join(o.name for o in used)})")
+    if unused:
+        lights.append(f"{len(unused)} left over")
+    return f"{count} material{'s' * (count != 1)} follow {'; '.join(lights)} and the world"
+
+
 class CTLAB_OT_sync_lighting(bpy.types.Operator):
     """Drive every Cook-Torrance material's key light from the key Sun and its HDRI from the
     world (done by itself when they change; this redoes it now)"""
@@ -414,9 +443,7 @@ class CTLAB_OT_sync_lighting(bpy.types.Operator):
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
-        sun = light_sync.key_sun(context.scene)
-        self.report({'INFO'}, f"{count} material{'s' * (count != 1)} follow "
-                              f"{sun.name if sun else 'no Sun'} and the world")
+        self.report({'INFO'}, sync_summary(context.scene, count))
         return {'FINISHED'}
 
 

@@ -1,7 +1,7 @@
 """Properties the add-on adds to Blender's data, registered and removed together.
 
 - ``Material.ctlab_view``, ``ctlab_g_model``, ``ctlab_diffuse_model``, ``ctlab_units``,
-  ``ctlab_ibl``: dropdowns that read and write the material's Cook-Torrance node itself (get/set
+  ``ctlab_ibl``, ``ctlab_light_transport``: dropdowns that read and write the material's Cook-Torrance node itself (get/set
   functions), so they can never disagree with it; unusable on materials without the model.
 - ``Scene.ctlab_sun``: the Sun the model's key light follows (empty: the scene's first Sun).
 - ``WindowManager.ctlab_job_*``: the background comparison's progress, for the sidebar;
@@ -14,7 +14,7 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, PointerProperty, StringProperty
 
 from ..blender import model_node
-from ..core.model import IBL_LABELS, OPTION_VALUES
+from ..core.model import IBL_LABELS, LIGHT_TRANSPORT_LABELS, OPTION_VALUES
 
 _LABELS = {"cook_torrance": "Cook-Torrance", "smith_ggx_correlated": "Smith (height-correlated)",
            "unity_smith_joint": "Unity (Smith joint approximation)",
@@ -41,6 +41,7 @@ UNITS_ITEMS = _items("units")
 ENERGY_ITEMS = (("none", "Single Scattering", "The seed's model: single-scattering specular"),
                 ("compensated", "Compensated", "Kulla-Conty multiple scattering"))
 IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in OPTION_VALUES["ibl"])
+TRANSPORT_ITEMS = tuple((m, *LIGHT_TRANSPORT_LABELS[m]) for m in OPTION_VALUES["light_transport"])
 
 
 def _option_property(key: str, name: str, items, description: str):
@@ -57,7 +58,7 @@ def _option_property(key: str, name: str, items, description: str):
             return
         try:
             model_node.set_option(node, key, values[index])
-            if key == "ibl":
+            if key in ("ibl", "light_transport"):
                 from ..blender import light_sync
                 light_sync.update_environment(node, bpy.context.scene)
         except UserError as exc:           # a setter cannot report: the console, and no change
@@ -91,6 +92,10 @@ def register() -> None:
                                       "and Conty 2017)")
     M.ctlab_ibl = _option_property("ibl", "Indirect Light", IBL_ITEMS,
                                    "How the HDRI lights the surface")
+    M.ctlab_light_transport = _option_property(
+        "light_transport", "Light Transport", TRANSPORT_ITEMS,
+        "Lab: the model lights itself, exactly, and sees no other object; Scene: Cycles path "
+        "traces it with everything in the scene")
     bpy.types.Scene.ctlab_sun = PointerProperty(
         name="Key Sun", type=bpy.types.Object, poll=_sun_poll, update=_sun_changed,
         description="The Sun the Cook-Torrance key light follows; empty: the scene's first Sun")
@@ -103,7 +108,8 @@ def register() -> None:
 
 
 NAMES = ((bpy.types.Material, ("ctlab_view", "ctlab_g_model", "ctlab_diffuse_model",
-                               "ctlab_units", "ctlab_energy", "ctlab_ibl")),
+                               "ctlab_units", "ctlab_energy", "ctlab_ibl",
+                               "ctlab_light_transport")),
          (bpy.types.Scene, ("ctlab_sun",)),
          (bpy.types.WindowManager, ("ctlab_job_progress", "ctlab_job_message",
                                     "ctlab_job_state", "ctlab_plot_message",

@@ -1,0 +1,168 @@
+"""The scene light transport of the OSL shader (docs/model.md "Light transport"): Cycles path
+traces the model's closures, and an emission corrects them to the model for the world and the
+lights. Checked against independently computed values: the lab transport (the model's own
+Monte Carlo integration, tested against closed forms and quadrature elsewhere) where both see
+only the world and the lights, and Principled BSDF (Cycles' own GGX metal) where path tracing
+sees other objects."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+from addon.blender import materials, model_node, renderer, scene_builder
+from addon.core import compare
+from addon.core.errors import UserError
+from addon.core.hdri import write_float_exr
+from addon.core.model import ModelOptions
+from addon.core.settings import MatrixSettings, describe
+
+SAMPLES = 256
+# Mean CIEDE2000 per sphere: at converged samples (the bound for world + lights), and at
+# SAMPLES, where the two renders' noise alone reads about 0.5 (a bias shows in the means,
+# which must agree to 1.5% either way).
+BOUND_DE = 0.5
+BOUND_DE_NOISY = 0.8
+CONVERGED = 1024
+
+
+@pytest.fixture(scope="module")
+def soft_sky(tmp_path_factory):
+    """A smooth sky without a sun spike (so 256 samples converge): a blue-to-white gradient
+    above, a dark brown ground, and a broad warm lobe, 256 x 128."""
+    h, w = 128, 256
+    t = (np.arange(h) + 0.5) / h                      # 0 at the top row (+Z)
+    s = (np.arange(w) + 0.5) / w
+    elev = (0.5 - t) * math.pi
+    phi = (0.5 - s) * 2 * math.pi
+    E, P = np.meshgrid(elev, phi, indexing="ij")
+    d = np.stack([np.cos(E) * np.cos(P), np.cos(E) * np.sin(P), np.sin(E)], axis=-1)
+    sky = np.where(d[..., 2:3] > 0, (0.35 + 0.65 * d[..., 2:3]) * np.array([0.55, 0.75, 1.0])
+                   + 0.3, np.array([0.12, 0.08, 0.05]))
+    lobe = np.clip(d @ np.array([0.6, -0.6, 0.52]) / 1.0, 0, 1) ** 8 * 6.0
+    img = (sky + lobe[..., None] * np.array([1.0, 0.8, 0.55])).astype(np.float32)
+    path = tmp_path_factory.mktemp("sky") / "soft_sky.exr"
+    write_float_exr(path, img)
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def matrix(soft_sky):
+    """A 2x2 matrix (metal and dielectric, smooth and rough) under the soft sky, built once
+    (the OSL shader compiles once): spheres hidden from each other's rays, no mutual shadows,
+    no key Sun (a delta Sun's highlight on the mirror is a sub-pixel spike that neither
+    estimate converges on in a test's samples)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    s = MatrixSettings(rows=2, cols=2, width=64, height=64, hdri=soft_sky, sun_strength=0.0,
+                       mutual_shadows=False, model=ModelOptions(light_transport="scene"))
+    scene = bpy.context.scene
+    scene_builder.build_matrix(scene, s)
+    node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
+    return s, scene, node
+
+
+def render_transport(matrix, out, transport, samples=SAMPLES, **model):
+    """Render the matrix's full view in one light transport; returns the render folder."""
+    s, scene, node = matrix
+    options = s.model_options(light_transport=transport, **model)
+    model_node.set_options(node, options)
+    renderer.configure(scene, "osl", "full", samples, path_traced=options.path_traced())
+    renderer.render(scene, out, dict(describe(s, s.hdri), model=options.as_dict()))
+    return out
+
+
+def assert_same(tmp_path, a, b, bound):
+    """Every sphere of b within mean CIEDE2000 ``bound`` of a's, and the mean radiance within
+    1% (a bias would show in the mean, noise averages out)."""
+    result = compare.compare(a, b, tmp_path / "cmp")
+    worst = max(c["ciede2000_mean"] for c in result["cells"])
+    ia, _, scene = compare.load_render(a)
+    ib, _, _ = compare.load_render(b)
+    ratios = [float(ib[m].mean() / ia[m].mean()) for m in
+              (compare.cell_mask(ia.shape[:2], c, 0.9) for c in scene["cells"])]
+    assert worst <= bound, (worst, ratios)
+    assert all(abs(r - 1) < 0.015 for r in ratios), ratios
+
+
+# Every G x diffuse x energy combination: the exact closures (Smith G, no compensation) and
+# the correction for the others.
+COMBOS = [(g, d, e) for g in ("smith_ggx_correlated", "cook_torrance", "unity_smith_joint")
+          for d in ("lambert", "disney") for e in ("none", "compensated")]
+
+
+@pytest.mark.parametrize("g_model,diffuse_model,energy", COMBOS)
+def test_scene_equals_lab_under_the_world(tmp_path, matrix, g_model, diffuse_model, energy):
+    """With only the world to see, the path-traced closures plus the correction equal the
+    lab's integration: every sphere's mean within 1.5%, its mean CIEDE2000 within the two
+    renders' noise."""
+    model = dict(g_model=g_model, diffuse_model=diffuse_model, energy=energy, env_samples=4)
+    assert_same(tmp_path, render_transport(matrix, tmp_path / "lab", "lab", **model),
+                render_transport(matrix, tmp_path / "scene", "scene", **model),
+                BOUND_DE_NOISY)
+
+
+@pytest.mark.parametrize("g_model,diffuse_model,energy",
+                         [("smith_ggx_correlated", "lambert", "none"),
+                          ("cook_torrance", "disney", "compensated")])
+def test_converged_scene_equals_lab_within_half_a_unit(tmp_path, matrix, g_model,
+                                                        diffuse_model, energy):
+    """At converged samples (1024) every sphere is within mean CIEDE2000 0.5 of the lab's:
+    the exact closures, and the correction with every term of it at work."""
+    model = dict(g_model=g_model, diffuse_model=diffuse_model, energy=energy, env_samples=4)
+    assert_same(tmp_path, render_transport(matrix, tmp_path / "lab", "lab", CONVERGED, **model),
+                render_transport(matrix, tmp_path / "scene", "scene", CONVERGED, **model),
+                BOUND_DE)
+
+
+# --- A real scene: the material beside other objects -------------------------------------
+
+def render_scene(scene, out, shader, samples=128):
+    """The scene's full view, path traced (exact settings); (linear EXR, display PNG)."""
+    renderer.configure(scene, shader, "full", samples, path_traced=True)
+    renderer.render(scene, out, {"width": scene.render.resolution_x,
+                                 "height": scene.render.resolution_y})
+    return compare.read_image(out / "render.exr"), compare.read_image(out / "render.png")
+
+
+def mean_delta_e(png_a, png_b, mask) -> float:
+    de = compare.ciede2000(compare.srgb_to_lab(png_a), compare.srgb_to_lab(png_b))
+    return float(de[mask].mean())
+
+
+def red(img, mask) -> float:
+    """R - G over the mask: the red cube's light."""
+    return float((img[..., 0] - img[..., 1])[mask].mean())
+
+
+@pytest.mark.parametrize("world", ["hdri", "sky"])
+def test_a_mirror_sphere_in_a_real_scene_equals_principled(tmp_path, world):
+    """Smith G, Lambert, scene transport: the Cook-Torrance sphere (metallic 1, smoothness
+    0.9) is Principled's GGX metal (F82 with a white tint is Schlick's F on the base colour)
+    within mean CIEDE2000 1 and 2% of its radiance, beside a cube, a floor, an area light and
+    an emissive panel, under an HDRI and under a Sky Texture; and it shows its neighbours,
+    which the lab transport does not (the red cube's light: R - G over the sphere)."""
+    from addon.blender import demo_scene, light_sync
+    scene, sphere, other = demo_scene.build(world)
+    demo_scene.set_material(other, demo_scene.principled_for(demo_scene.ORANGE, "Orange"))
+    demo_scene.set_material(sphere, demo_scene.principled_for(demo_scene.METAL))
+    ref_exr, ref_png = render_scene(scene, tmp_path / "principled", "principled")
+    mat = materials.model_material(
+        "CT", "osl", ModelOptions(light_transport="scene", g_model="smith_ggx_correlated",
+                                  diffuse_model="lambert"), **demo_scene.METAL)
+    demo_scene.set_material(sphere, mat)
+    light_sync.sync_material(mat, scene)
+    exr, png = render_scene(scene, tmp_path / "scene", "osl")
+    mask = demo_scene.sphere_mask(scene, sphere, exr.shape[:2])
+    assert mask.sum() > 300
+    assert np.isfinite(exr).all()
+    de = mean_delta_e(ref_png, png, mask)
+    ratio = float(exr[mask].mean() / ref_exr[mask].mean())
+    assert de <= 1.0, (de, ratio)
+    assert abs(ratio - 1) < 0.02, ratio
+    assert red(exr, mask) == pytest.approx(red(ref_exr, mask), rel=0.1, abs=0.005)
+    # the lab transport does not see the cube, the floor or the panel
+    model_node.set_option(model_node.find(mat), "light_transport", "lab")
+    lab_exr, lab_png = render_scene(scene, tmp_path / "lab", "osl")
+    assert mean_delta_e(ref_png, lab_png, mask) > 3 * max(de, 0.5), "lab should differ"
+    assert red(exr, mask) > red(lab_exr, mask) + 0.01
