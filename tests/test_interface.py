@@ -10,7 +10,7 @@ import pytest
 from conftest import ROOT
 from addon.blender import model_node, node_group, osl_shader
 from addon.core.model import (GROUP_INPUTS, GROUP_OUTPUTS, INPUTS, OPTION_VALUES, OSL_INPUTS,
-                              OSL_OUTPUT, VIEWS)
+                              OSL_OUTPUTS, VIEWS)
 
 pytestmark = pytest.mark.quick
 SHADER = (ROOT / "osl" / "cook_torrance.osl").read_text()
@@ -49,7 +49,7 @@ def test_the_osl_shaders_parameters_are_the_table(osl_node):
         else:
             assert have == pytest.approx(want) if isinstance(want, float) else have == want, \
                 (i.key, have, want)
-    assert [s.identifier for s in osl_node.outputs] == [OSL_OUTPUT]
+    assert [s.identifier for s in osl_node.outputs] == list(OSL_OUTPUTS)
 
 
 def test_the_osl_shader_offers_exactly_the_views_and_switch_values():

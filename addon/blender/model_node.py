@@ -17,7 +17,8 @@ import bpy
 from . import drivers, node_group, osl_shader
 from ..core.errors import UserError
 from ..core.model import (BAKED_IBL_MODES, BY_KEY, LIGHT_FIELDS, LIGHT_SLOTS, LIGHTING,
-                          OPTIONS, OPTION_VALUES, SURFACE, Lighting, ModelOptions, light_key)
+                          OPTIONS, OPTION_VALUES, OSL_RESIDUAL, SURFACE, Lighting,
+                          ModelOptions, light_key)
 
 IMPLEMENTATIONS = ("osl", "nodes")
 IMPLEMENTATION_LABELS = {"osl": "OSL Shader", "nodes": "Node Group"}
@@ -107,7 +108,19 @@ def connect_output(tree: bpy.types.NodeTree, node: bpy.types.Node) -> bpy.types.
     out.location = (node.location.x + 400, node.location.y)
     out.target = 'CYCLES' if implementation(node) == "osl" else 'ALL'
     tree.links.new(shader_output(node), out.inputs["Surface"])
+    connect_residual(tree, node)
     return out
+
+
+def connect_residual(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
+    """The OSL shader's residual albedo into an AOV Output of the same name (core.model
+    OSL_RESIDUAL), so a view layer with that AOV shows it as a render pass."""
+    if implementation(node) != "osl" or OSL_RESIDUAL not in node.outputs:
+        return
+    aov = tree.nodes.new("ShaderNodeOutputAOV")
+    aov.location = (node.location.x + 400, node.location.y - 200)
+    aov.aov_name = OSL_RESIDUAL
+    tree.links.new(node.outputs[OSL_RESIDUAL], aov.inputs["Color"])
 
 
 def link_geometry_normal(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:

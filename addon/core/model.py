@@ -232,6 +232,11 @@ OPTION_VALUES = {i.key: i.values for i in OPTIONS}       # key -> allowed values
 # The node group's outputs (the OSL shader's is its closure, BSDF).
 GROUP_OUTPUTS = (("Emission", "SHADER"), ("Value", "RGBA"))
 OSL_OUTPUT = "BSDF"
+# The scene transport's remainder, an OSL output shown as a render pass (an AOV of this name):
+# integral of |f_model - f_closure| (n.l) dl, estimated at camera hits (docs/model.md "Light
+# transport"); 0 where the closures are the model or in the lab transport.
+OSL_RESIDUAL = "residual_albedo"
+OSL_OUTPUTS = (OSL_OUTPUT, OSL_RESIDUAL)
 
 
 # --- Derived quantities (docs/model.md; Unity's UnityStandardUtils / UnityStandardBRDF)
