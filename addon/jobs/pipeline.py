@@ -25,7 +25,7 @@ from ..core.errors import Cancelled
 from ..core.files import check_writable, refuse_overwrite
 from ..core.hdri import load_hdri
 from ..core.report import write_parity_report, write_report
-from ..core.model import G_MODELS
+from ..core.model import BAKED_IBL_MODES, G_MODELS
 from ..core.settings import MatrixSettings, with_overrides
 
 
@@ -151,8 +151,12 @@ def matrix_settings(base: MatrixSettings) -> dict:
     """The main job's renders: folder -> settings, all validated before anything renders."""
     settings = {}
     for folder, _, shader, ibl, overrides in MATRIX_RENDERS:
+        # the baked modes are the lab transport's approximations of the reference: with
+        # --light-transport scene they stay lab renders (the study of the split-sum)
+        transport = "lab" if shader == "osl" and ibl in BAKED_IBL_MODES else \
+            base.model.light_transport
         settings[folder] = with_overrides(base, dict(overrides, shader=shader, ibl=ibl,
-                                                     view="full"))
+                                                     view="full", light_transport=transport))
     for folder, g_model, energy_mode in FURNACE_RENDERS:
         settings[folder] = energy.furnace_settings(g_model, base.model.env_samples,
                                                    base.model.seed, energy_mode)
