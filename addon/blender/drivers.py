@@ -11,6 +11,8 @@ inputs alike (core.model.LIGHTING), so one set of drivers serves both.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import bpy
 
 from ..core.model import BY_KEY, light_key
@@ -73,10 +75,106 @@ def world_nodes(world: bpy.types.World):
     return background, mapping
 
 
+class WorldLighting(NamedTuple):
+    """How a world lights the model (world_lighting).
+
+    kind: "colour" (a uniform image of ``colour``: no world, no node tree, or a Background
+    whose Color is not linked; black when nothing reaches the World Output), "image" (the
+    Environment Texture ``image_node``'s file is the whole lighting: Environment Texture ->
+    Background -> World Output, its vector unlinked or from Generated coordinates through a
+    Mapping node that only turns about Z, ``mapping``) or "baked" (any other node tree:
+    blender/world_bake.py renders it to an image).
+    background: the Background node that feeds the World Output directly with an unlinked
+    Strength, whose strength drives HDRI Strength (a baked world is baked at strength 1 of
+    it); None when the strength is inside the image (HDRI Strength is then 1).
+    mapping: for "image", the Mapping node whose Z rotation drives HDRI Rotation; otherwise
+    None (a baked world's rotation is inside the bake: HDRI Rotation is then 0)."""
+    kind: str
+    background: object = None
+    mapping: object = None
+    image_node: object = None
+    colour: tuple = (0.0, 0.0, 0.0)
+
+
+def _source(socket):
+    """The node and output socket feeding ``socket`` through reroutes, or (None, None)."""
+    while socket.is_linked:
+        link = socket.links[0]
+        if link.is_muted or not link.is_valid:
+            return None, None
+        node = link.from_node
+        if node.bl_idname == "NodeReroute":
+            socket = node.inputs[0]
+            continue
+        return node, link.from_socket
+    return None, None
+
+
+def _plain_mapping(mapping) -> bool:
+    """A Mapping node that turns Generated coordinates about Z and nothing else."""
+    if mapping.mute or mapping.vector_type != 'POINT':
+        return False
+    if any(s.is_linked for s in mapping.inputs if s.name != "Vector"):
+        return False
+    loc, rot, scale = (mapping.inputs[k].default_value for k in ("Location", "Rotation", "Scale"))
+    if any(abs(c) > 0 for c in loc) or rot[0] != 0 or rot[1] != 0 or \
+            any(c != 1 for c in scale):
+        return False
+    coords, out = _source(mapping.inputs["Vector"])
+    return coords is not None and coords.bl_idname == "ShaderNodeTexCoord" and \
+        not coords.mute and out.identifier == "Generated"
+
+
+def _direct_image(env) -> bool:
+    return env.bl_idname == "ShaderNodeTexEnvironment" and not env.mute and \
+        env.image is not None and env.image.source == 'FILE' and \
+        env.projection == 'EQUIRECTANGULAR'
+
+
+def world_lighting(world: bpy.types.World | None) -> WorldLighting:
+    """Classify ``world``'s node tree (WorldLighting). Only the tree's active World Output
+    (for Cycles) counts."""
+    if world is None:
+        return WorldLighting("colour")
+    tree = world.node_tree
+    if tree is None or (bpy.app.version < (5, 0, 0) and not world.use_nodes):
+        return WorldLighting("colour", colour=tuple(world.color))
+    output = tree.get_output_node('CYCLES')
+    if output is None or output.mute:
+        return WorldLighting("colour")
+    shader, _ = _source(output.inputs["Surface"])
+    if shader is None:
+        return WorldLighting("colour")          # nothing reaches the output: black
+    if shader.bl_idname != "ShaderNodeBackground" or shader.mute:
+        return WorldLighting("baked")
+    background = None if shader.inputs["Strength"].is_linked else shader
+    colour_socket = shader.inputs["Color"]
+    if not colour_socket.is_linked:
+        if background is None:
+            return WorldLighting("baked")
+        return WorldLighting("colour", background, colour=tuple(colour_socket.default_value[:3]))
+    env, out = _source(colour_socket)
+    if background is not None and env is not None and _direct_image(env) and \
+            out.identifier == "Color":
+        vec, vec_out = _source(env.inputs["Vector"])
+        if not env.inputs["Vector"].is_linked:
+            return WorldLighting("image", background, None, env)
+        if vec is not None and vec.bl_idname == "ShaderNodeTexCoord" and not vec.mute and \
+                vec_out.identifier == "Generated":
+            return WorldLighting("image", background, None, env)
+        if vec is not None and vec.bl_idname == "ShaderNodeMapping" and _plain_mapping(vec):
+            return WorldLighting("image", background, vec, env)
+    return WorldLighting("baked", background)
+
+
 def add_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, sun: bpy.types.Object | None,
                 world: bpy.types.World | None) -> int:
     """Drive ``node``'s key-light and world inputs from ``sun`` and ``world``; returns how many
-    drivers were added. Inputs without a source keep their values."""
+    drivers were added. Inputs without a source keep their values, but the world's: HDRI
+    Strength follows the Background node that feeds the World Output (world_lighting), else
+    is 1 (a world without one, or one whose strength is inside its bake); HDRI Rotation
+    follows the Mapping node of an Environment Texture world, else is 0 (a uniform world, or
+    one whose rotation is inside its bake)."""
     count = 0
     names = {s.name for s in node.inputs}
     if sun is not None and sun.type == 'LIGHT' and sun.data.type == 'SUN':
@@ -93,15 +191,26 @@ def add_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, sun: bpy.types.O
                 _driver(tree, path, i, "e * c", [("e", 'LIGHT', sun.data, "energy"),
                                                   ("c", 'LIGHT', sun.data, f"color[{i}]")])
                 count += 1
-    background, mapping = world_nodes(world)
-    if background is not None and HDRI_STRENGTH in names:
-        _driver(tree, _input_path(node, HDRI_STRENGTH), None, "s",
-                [("s", 'WORLD', world, f'node_tree.nodes["{background.name}"].inputs[1].default_value')])
-        count += 1
-    if mapping is not None and HDRI_ROTATION in names:
-        _driver(tree, _input_path(node, HDRI_ROTATION), None, "r",
-                [("r", 'WORLD', world, f'node_tree.nodes["{mapping.name}"].inputs[2].default_value[2]')])
-        count += 1
+    lighting = world_lighting(world)
+    background, mapping = lighting.background, lighting.mapping
+    if HDRI_STRENGTH in names:
+        if background is not None:
+            index = next(i for i, s in enumerate(background.inputs) if s.name == "Strength")
+            _driver(tree, _input_path(node, HDRI_STRENGTH), None, "s",
+                    [("s", 'WORLD', world,
+                      f'node_tree.nodes["{background.name}"].inputs[{index}].default_value')])
+            count += 1
+        else:
+            node.inputs[HDRI_STRENGTH].default_value = 1.0
+    if HDRI_ROTATION in names:
+        if mapping is not None:
+            index = next(i for i, s in enumerate(mapping.inputs) if s.name == "Rotation")
+            _driver(tree, _input_path(node, HDRI_ROTATION), None, "r",
+                    [("r", 'WORLD', world,
+                      f'node_tree.nodes["{mapping.name}"].inputs[{index}].default_value[2]')])
+            count += 1
+        else:
+            node.inputs[HDRI_ROTATION].default_value = 0.0
     return count
 
 

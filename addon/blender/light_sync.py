@@ -3,8 +3,13 @@ and the world's strength and rotation through drivers (blender/drivers.py), the 
 and which light holds which slot through a depsgraph handler (a driver cannot set a file or
 choose a light): when the world, its Environment Texture image, the key Sun or the set of lights
 (added, removed, hidden from render, a type or shape changed) changes, every user material that
-uses the model is synced again, and pointed at the HDRI (or, for a world without an image, a
-small uniform image of its colour) and at the files derived from it.
+uses the model is synced again, and pointed at the HDRI and at the files derived from it.
+
+The HDRI is the world's Environment Texture file when that image is the world's whole
+lighting (drivers.world_lighting: Environment Texture -> Background -> World Output, perhaps
+behind a Mapping node); any other node tree (a Sky Texture, gradients, mixes) is baked to an
+image (blender/world_bake.py, cached under the tree's content); a world without nodes, or a
+Background of one colour, gives a small uniform image of its colour.
 """
 
 from __future__ import annotations
@@ -13,8 +18,8 @@ from pathlib import Path
 
 import bpy
 
-from . import model_node, scene_lights
-from .drivers import world_nodes
+from . import model_node, scene_lights, world_bake
+from .drivers import world_lighting
 from ..core import env_importance, ibl_bake
 from ..core.errors import UserError
 from ..core.hdri import load_hdri, uniform_world
@@ -36,30 +41,48 @@ def key_sun(scene: bpy.types.Scene) -> bpy.types.Object | None:
 
 
 def world_hdri_path(scene: bpy.types.Scene) -> str:
-    """The image file of the scene world's Environment Texture, or "" when there is none."""
-    world = scene.world
-    if world is None or world.node_tree is None:
+    """The image file of the scene world's Environment Texture when that image is the world's
+    whole lighting (drivers.world_lighting "image"), else "" (a baked or uniform world)."""
+    lighting = world_lighting(scene.world)
+    if lighting.kind != "image":
         return ""
-    for node in world.node_tree.nodes:
-        if node.bl_idname == "ShaderNodeTexEnvironment" and node.image is not None:
-            return bpy.path.abspath(node.image.filepath, library=node.image.library)
-    return ""
+    image = lighting.image_node.image
+    return bpy.path.abspath(image.filepath, library=image.library)
 
 
-def _world_colour(world) -> tuple:
-    background, _ = world_nodes(world)
-    if background is not None:
-        return tuple(background.inputs["Color"].default_value[:3])
-    return tuple(world.color) if world is not None else (0.0, 0.0, 0.0)
+def world_label(scene: bpy.types.Scene) -> str:
+    """What lights the model, for the panel: "HDRI: forest.exr", "World: baked from its
+    nodes (Sky Texture)" or "HDRI: none; the world's colour"."""
+    lighting = world_lighting(scene.world)
+    if lighting.kind == "image":
+        return f"HDRI: {bpy.path.basename(world_hdri_path(scene))}"
+    if lighting.kind == "baked":
+        return f"World: baked from its nodes ({world_bake.summary(scene.world)})"
+    return "HDRI: none; the world's colour"
 
 
 def environment_file(scene: bpy.types.Scene):
-    """The HDRI the model lights with: the world's Environment Texture image, or, for a world
-    without one, a small uniform image of the world's colour (kept in the cache)."""
-    path = world_hdri_path(scene)
-    if path:
-        return Path(path)
-    return uniform_world(_world_colour(scene.world))
+    """The HDRI the model lights with: the world's Environment Texture image when it is the
+    whole lighting, the world's node tree baked to an image (world_bake, cached) for any other
+    tree, or a small uniform image of the world's colour (kept in the cache)."""
+    lighting = world_lighting(scene.world)
+    if lighting.kind == "image":
+        return Path(world_hdri_path(scene))
+    if lighting.kind == "baked":
+        return world_bake.bake_world(scene.world)
+    return uniform_world(lighting.colour)
+
+
+def _world_state(world) -> tuple:
+    """What of the world the materials depend on, cheaply (the handler runs on every
+    depsgraph update): a baked world's tree content, with image files by size and date."""
+    lighting = world_lighting(world)
+    if lighting.kind == "baked":
+        try:
+            return ("baked", world_bake.signature(world, content=False))
+        except UserError as exc:           # a missing image: sync, which reports it
+            return ("baked", str(exc))
+    return (lighting.kind, lighting.colour)
 
 
 class Environment:
@@ -102,7 +125,10 @@ def update_environment(node: bpy.types.Node, scene: bpy.types.Scene,
     if model_node.get_option(node, "ibl") == "reference":
         model_node.set_environment(node, env.hdri, tables=env.tables)
     else:
-        model_node.set_environment(node, env.hdri, bake=env.bake)
+        # the OSL scene transport's correction integrates the HDRI with the importance tables
+        tables = env.tables if model_node.implementation(node) == "osl" and \
+            model_node.get_option(node, "light_transport") == "scene" else None
+        model_node.set_environment(node, env.hdri, tables=tables, bake=env.bake)
 
 
 def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=True,
@@ -115,6 +141,10 @@ def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=T
     if node is None:
         return
     tree = mat.node_tree
+    # The model's emission is a view (lab) or a signed correction (scene), never a lamp:
+    # sampled as a mesh light it throws fireflies on its neighbours.
+    if mat.cycles.emission_sampling != 'NONE':
+        mat.cycles.emission_sampling = 'NONE'
     model_node.remove_drivers(tree, node)
     sun = key_sun(scene)
     model_node.add_drivers(tree, node, sun, scene.world)
@@ -137,7 +167,7 @@ def _state(scene) -> tuple:
     sun = key_sun(scene)
     used, unused = scene_lights.scene_lights(scene, exclude=sun)
     return (world.name if world else "", world_hdri_path(scene),
-            _world_colour(world) if world else (), sun.name if sun else "",
+            _world_state(world), sun.name if sun else "",
             scene_lights.state(used), len(unused))
 
 
@@ -148,6 +178,8 @@ last_error: dict = {}          # scene name -> the last sync error (shown in the
 @bpy.app.handlers.persistent
 def on_depsgraph_update(scene, depsgraph=None) -> None:
     """Follow a new world, HDRI image or key Sun in every material that uses the model."""
+    if world_bake.busy():              # the world bake's own scene
+        return
     state = _state(scene)
     if _seen.get(scene.name) == state:
         return

@@ -4,7 +4,9 @@ The description is data: frames of named nodes written as nested calls (see the 
 This module parses each expression into Blender shader nodes, wires them, puts each frame's
 nodes into a frame named after the term, and selects the view with the View input. The group's
 sockets are the model's interface (core.model.GROUP_INPUTS). The baked split-sum files
-(core/ibl_bake.py) are loaded as images by ``set_bake``.
+(core/ibl_bake.py) are loaded as images by ``set_bake``. With Light Transport Scene = 1 and
+the full view, the Emission output is the model as Cycles closures instead (the description's
+[scene], ``_scene_transport``).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import bpy
 from ..core.errors import UserError
 from ..core.files import NODE_GROUPS_DIR
 from ..core.ibl_bake import DFG_SIZE, LEVEL_COUNT
-from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, LIGHT_SLOTS, VIEWS
+from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, LIGHT_SLOTS, SCENE_VIEWS, VIEWS
 
 DESCRIPTION = NODE_GROUPS_DIR / "cook_torrance.toml"
 TAG = "ctlab_node_group"
@@ -42,6 +44,9 @@ def load_description(path: Path = DESCRIPTION) -> dict:
     if data["lights"]["slots"] != LIGHT_SLOTS:
         raise UserError(f"{path}: it is written for {data['lights']['slots']} light slots; the "
                         f"model has {LIGHT_SLOTS}")
+    if not {"label", "on", "multi_ggx", "specular", "diffuse"} <= set(data.get("scene", {})):
+        raise UserError(f"{path}: its [scene] table needs label, on, multi_ggx, specular.* "
+                        "and diffuse.* (the scene transport's closures)")
     if data["group"]["dfg_size"] != DFG_SIZE:
         raise UserError(f"{path}: its DFG lookups are written for {data['group']['dfg_size']}"
                         f"-texel tables; ibl_bake makes {DFG_SIZE}")
@@ -596,6 +601,7 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
 
     colour = select("colour")
     emission = _closures(b, views, view_on, select("emission"))
+    emission = _scene_transport(b, data["scene"], view_on, emission)
     out = group.nodes.new("NodeGroupOutput")
     out.location = (2800, 0)
     group.links.new(emission, out.inputs["Emission"])
@@ -662,6 +668,80 @@ def _closures(b: _Builder, views: dict, view_on: list, rest):
         b.link(closure, add.inputs[1])
         total = add.outputs["Shader"]
     return total
+
+
+def _scene_transport(b: _Builder, spec: dict, view_on: list, lab):
+    """The Emission output with the scene transport (the description's [scene]): where
+    Light Transport Scene is 1 and the View is one of SCENE_VIEWS (full), the model as
+    closures that Cycles path traces, else ``lab`` (the lab's emission). A Mix Shader of
+    factor exactly 0 or 1 selects, so Cycles skips the other side with every node that only
+    it uses.
+
+    The closures, as the OSL shader's scene_closures():
+    - a Metallic BSDF, Fresnel F82 with a white Edge Tint: Cycles' F82-tint Fresnel is
+      Schlick's F(mu) = F0 + (1 - F0)(1 - mu)^5 minus b mu (1 - mu)^6, with b proportional to
+      (1 - tint), so 0 here: Schlick's F on Base Color = specColor. GGX D and the
+      height-correlated Smith G, single scattering; Multiscatter GGX where ``multi_ggx`` is 1
+      (Energy Compensated: Cycles' albedo scaling with Kulla and Conty's Fresnel term, the
+      model's k_ms for its own tables: an approximation, exact only up to Cycles' E table).
+      The node squares its Roughness, so Roughness = sqrt(alpha) = max(pr, sqrt(0.002)).
+    - plus a Diffuse BSDF of Roughness 0: Lambert's diffColor / pi.
+    Both on the shading normal n.
+
+    This is the model exactly for G = smith_ggx_correlated, Lambert's diffuse and no energy
+    compensation. For Cook-Torrance's and Unity's G, Disney's diffuse (SVM has no Burley
+    closure) and the compensated lobe the closures approximate the model; the node group has
+    no correction emission (the OSL shader adds one)."""
+    frame = b.current_frame = "scene"
+    b.frame_labels[frame] = spec["label"]
+    b.mode = "colour"
+
+    def value(text):
+        sock = b.value(parse(text))
+        b.current_frame = frame
+        return sock
+
+    def specular(distribution):
+        node = b.new("ShaderNodeBsdfMetallic", distribution=distribution, fresnel_type='F82')
+        node.label = f"specular ({distribution})"
+        b.link(colour, node.inputs["Base Color"])
+        node.inputs["Edge Tint"].default_value = (1.0, 1.0, 1.0, 1.0)
+        b.link(roughness, node.inputs["Roughness"])
+        b.link(normal, node.inputs["Normal"])
+        return node.outputs["BSDF"]
+
+    def mix(fac, first, second, label):
+        node = b.new("ShaderNodeMixShader")
+        node.label = label
+        b.link(fac, node.inputs["Fac"])
+        b.link(first, node.inputs[1])
+        b.link(second, node.inputs[2])
+        return node.outputs["Shader"]
+
+    on = value(spec["on"])
+    weight = None
+    for view in SCENE_VIEWS:
+        k = VIEWS.index(view)
+        weight = view_on[k] if weight is None else b.call("math.ADD", [weight, view_on[k]])
+    scene_on = b.call("math.MULTIPLY", [on, weight])
+    scene_on.node.label = "scene transport on"
+
+    colour, roughness, normal = (value(spec["specular"][k])
+                                 for k in ("color", "roughness", "normal"))
+    if not roughness.node.label:
+        roughness.node.label = "roughness = sqrt(alpha)"
+    single, multiple = specular('GGX'), specular('MULTI_GGX')
+    spec_closure = mix(value(spec["multi_ggx"]), single, multiple, "specular: multiple scattering")
+    diffuse = b.new("ShaderNodeBsdfDiffuse")
+    diffuse.label = "diffuse (Lambert)"
+    b.link(value(spec["diffuse"]["color"]), diffuse.inputs["Color"])
+    diffuse.inputs["Roughness"].default_value = 0.0
+    b.link(value(spec["diffuse"]["normal"]), diffuse.inputs["Normal"])
+    add = b.new("ShaderNodeAddShader")
+    add.label = "scene closures"
+    b.link(spec_closure, add.inputs[0])
+    b.link(diffuse.outputs["BSDF"], add.inputs[1])
+    return mix(scene_on, lab, add.outputs["Shader"], "lab emission or scene closures")
 
 
 SOURCE_HASH = "ctlab_source_hash"

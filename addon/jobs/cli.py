@@ -1,5 +1,6 @@
-"""The command line: ``render``, ``compare``, ``bake``, ``matrix`` and ``plot`` (scripts/ctlab.py is the
-entry). It maps arguments onto settings (core.settings) and runs the pipeline (jobs/pipeline.py).
+"""The command line: ``render``, ``compare``, ``bake``, ``matrix``, ``plot`` and ``scene``
+(scripts/ctlab.py is the entry). It maps arguments onto settings (core.settings) and runs the
+pipeline (jobs/pipeline.py; ``scene``: jobs/scene_job.py).
 
 Bad input gets a one-line message naming the problem and exit status 2, and nothing is
 written. Blender's own per-tile output goes to a log file in the system temp folder; the
@@ -353,6 +354,31 @@ def cmd_plot(args) -> None:
         f"albedo.csv and plot.json in {out}")
 
 
+def cmd_scene(args) -> None:
+    """A user's scene through its camera: its Cook-Torrance materials against Principled
+    conversions (or, with --convert, its Principled materials against Cook-Torrance ones);
+    jobs/scene_job.py."""
+    from .scene_job import SceneJob, run_scene
+    blend = check_path(args.blend, ".blend file")
+    out = check_path(args.out, "--out")
+    job = SceneJob(blend=blend, out=out, convert=args.convert,
+                   light_transport=args.light_transport, shader=args.shader,
+                   g_model=args.g_model, diffuse_model=args.diffuse_model, energy=args.energy,
+                   size=args.size, samples=args.samples, seed=args.seed, camera=args.camera,
+                   principled_distribution=args.principled_distribution, verbose=args.verbose)
+    what = "Principled materials converted to Cook-Torrance" if args.convert else \
+        "Cook-Torrance materials against Principled conversions"
+    say(f"scene {blend}: {what}, {args.light_transport} transport, size {args.size}, "
+        f"{args.samples} samples -> {out}")
+    data = run_scene(job, events())
+    for m in data["materials"]:
+        de, ratio = m["ciede2000_mean"], m["luminance_ratio"]
+        say(f"  {m['name']}: {m['pixels']} px, mean CIEDE2000 "
+            f"{'-' if de is None else f'{de:.2f}'}, luminance model/Principled "
+            f"{'-' if ratio is None else f'{ratio:.4f}'}")
+    say(f"done: metrics.json, diff.png, materials.png; open {data['report']}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="ctlab", description="Cook-Torrance Lab batch tools")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -413,6 +439,39 @@ def build_parser() -> argparse.ArgumentParser:
                         "list, repeatable), e.g. g=smith_ggx_correlated,g=unity_smith_joint")
     p.add_argument("--verbose", action="store_true", help="show Blender's own output")
     p.set_defaults(func=cmd_plot)
+    s = sub.add_parser("scene", help="a .blend's own scene through its camera: its "
+                                     "Cook-Torrance materials against Principled BSDF "
+                                     "conversions, per material (never saved)")
+    s.add_argument("blend", help="the .blend file (opened, never written)")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--convert", action="store_true",
+                   help="the other way: the scene's Principled materials converted to the "
+                        "model, the originals as the reference")
+    s.add_argument("--light-transport", dest="light_transport", default="scene",
+                   choices=LIGHT_TRANSPORTS, help="for the model materials (default scene: "
+                                                  "Cycles path traces the model's closures)")
+    s.add_argument("--shader", default=None, choices=("osl", "nodes"),
+                   help="the model's implementation (default: each material's own; osl "
+                        "with --convert)")
+    s.add_argument("--g", dest="g_model", default=None, choices=G_MODELS,
+                   help="G for every model material (default: each material's own)")
+    s.add_argument("--diffuse", dest="diffuse_model", default=None, choices=DIFFUSE_MODELS,
+                   help="diffuse for every model material (default: each material's own)")
+    s.add_argument("--energy", default=None, choices=ENERGY_MODES,
+                   help="energy for every model material (default: each material's own)")
+    s.add_argument("--principled-distribution", dest="principled_distribution",
+                   default=None, choices=("auto", "GGX", "MULTI_GGX"),
+                   help="the conversions' GGX (default auto: GGX, the model's single "
+                        "scattering; MULTI_GGX for energy compensated)")
+    s.add_argument("--size", type=int, default=256,
+                   help="the longer image side in pixels (the camera's aspect is kept; "
+                        "default %(default)s)")
+    s.add_argument("--samples", type=int, default=64,
+                   help="samples per pixel, both renders (default %(default)s)")
+    s.add_argument("--seed", type=int, default=0, help="the renders' seed (default 0)")
+    s.add_argument("--camera", default=None, help="a camera object (default: the scene's)")
+    s.add_argument("--verbose", action="store_true", help="show Blender's own output")
+    s.set_defaults(func=cmd_scene)
     return parser
 
 
@@ -424,7 +483,7 @@ def fill_defaults(args, defaults: dict) -> None:
 
 VALUE_FLAGS = {a.flag for a in SCENE_ARGS if not a.flag_only} | {
     "--out", "--view", "--engine", "--shader", "--parity-hdris", "--metallic", "--smoothness",
-    "--compare"}
+    "--compare", "--camera", "--seed"}
 
 
 def main(argv_=None) -> int:

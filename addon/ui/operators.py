@@ -48,8 +48,11 @@ class _progress:
         if self.status:
             print(f"Cook-Torrance Lab: {self.status}", flush=True)
             if self.workspace is not None:
-                self.workspace.status_text_set(self.status)     # shown before the work
-                bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+                self.workspace.status_text_set(self.status)
+                try:                                # drawn now, before the work blocks
+                    bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+                except RuntimeError:                # no window to draw (background)
+                    pass
         return self
 
     def __call__(self, fraction, message):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..blender import convert, light_sync, model_node, scene_lights
+from ..blender import convert, light_sync, model_node, renderer, scene_lights
 from .operators import (PLOT_IMAGE, CTLAB_OT_add_node_group, CTLAB_OT_add_texture,
                         CTLAB_OT_bake_environment, CTLAB_OT_brdf_plot,
                         CTLAB_OT_build_sphere_matrix,
@@ -13,7 +13,7 @@ from .operators import (PLOT_IMAGE, CTLAB_OT_add_node_group, CTLAB_OT_add_textur
                         CTLAB_OT_convert_to_principled, CTLAB_OT_new_material,
                         CTLAB_OT_render_comparison, CTLAB_OT_set_view_all,
                         CTLAB_OT_switch_implementation, CTLAB_OT_sync_lighting, JOBS)
-from ..core.model import LIGHT_SLOTS, ggx_alpha, perceptual_roughness
+from ..core.model import LIGHT_SLOTS, ggx_alpha, perceptual_roughness, transport_notes
 
 
 def _source_label(sock: bpy.types.NodeSocket) -> str:
@@ -42,6 +42,25 @@ def _image_node(sock):
     if node.bl_idname == "ShaderNodeNormalMap" and node.inputs["Color"].is_linked:
         node = node.inputs["Color"].links[0].from_node
     return node if node.bl_idname == "ShaderNodeTexImage" else None
+
+
+def _transport_box(layout, scene, node) -> None:
+    """What the material sees in its light transport, and the render settings that keep the
+    scene transport from being exact."""
+    options = {k: model_node.get_option(node, k) for k in
+               ("light_transport", "view", "units", "g_model", "diffuse_model", "energy")}
+    box = layout.box()
+    for i, line in enumerate(transport_notes(model_node.implementation(node), **options)):
+        box.label(text=line, icon='LIGHT' if i == 0 else 'BLANK1')
+    if options["light_transport"] == "scene":
+        if options["units"] != "physical":
+            box.label(text="Unity units exist in the Lab transport only: shown as Lab",
+                      icon='ERROR')
+        inexact = renderer.inexact_path_tracing(scene) if scene.render.engine == 'CYCLES' \
+            else []
+        if inexact:
+            box.label(text="Not exact with " + ", ".join(inexact) + " (Render Properties > "
+                      "Light Paths)", icon='ERROR')
 
 
 class CTLAB_PT_material(bpy.types.Panel):
@@ -105,6 +124,8 @@ class CTLAB_PT_material(bpy.types.Panel):
         col.prop(mat, "ctlab_units")
         col.prop(mat, "ctlab_energy")
         col.prop(mat, "ctlab_ibl")
+        col.prop(mat, "ctlab_light_transport")
+        _transport_box(layout, scene, node)
         wm = context.window_manager
         row = layout.row()
         row.operator(CTLAB_OT_brdf_plot.bl_idname, icon='GRAPH')
@@ -152,9 +173,7 @@ class CTLAB_PT_material(bpy.types.Panel):
         if impl == "nodes" and (used or sun):
             box.label(text="The node group's lights cast no shadows (it cannot trace)",
                       icon='INFO')
-        hdri = light_sync.world_hdri_path(scene)
-        box.label(text=f"HDRI: {bpy.path.basename(hdri)}" if hdri
-                  else "HDRI: none; the world's colour", icon='WORLD')
+        box.label(text=light_sync.world_label(scene), icon='WORLD')
         error = light_sync.last_error.get(scene.name)
         if error:
             box.label(text=error, icon='ERROR')
