@@ -531,3 +531,41 @@ def test_brdf_plot_of_the_active_material(addon, tmp_path):
     cube.active_material = bpy.data.materials["Material"]
     with pytest.raises(RuntimeError, match="poll"):
         bpy.ops.ctlab.brdf_plot(directory=str(tmp_path / "c"))
+
+
+def test_scene_comparison_in_the_background(addon, tmp_path):
+    """Compare Scene with Principled: the open scene (never written) through its camera, its
+    Cook-Torrance material against the Principled conversion, in a background process; the
+    report and the per-material metrics are written and the file's copy is removed."""
+    import time
+    from addon.blender import demo_scene, light_sync, materials
+    from addon.core.model import ModelOptions
+    scene, sphere, _other = demo_scene.build("hdri", 48, 36)
+    register_scene = bpy.context.scene
+    assert register_scene == scene
+    mat = materials.model_material("CT", "nodes", ModelOptions(
+        light_transport="scene", g_model="smith_ggx_correlated", diffuse_model="lambert",
+        ibl="split_sum"), **demo_scene.METAL)
+    demo_scene.set_material(sphere, mat)
+    light_sync.sync_material(mat, scene)
+    out = tmp_path / "scene"
+    assert bpy.ops.ctlab.scene_comparison(directory=str(out), size=48, samples=4,
+                                          open_report=False) == {'FINISHED'}
+    job = operators.JOBS["comparison"]
+    start = time.monotonic()
+    while job.poll() in ("running", "cancelling") and time.monotonic() - start < 300:
+        operators._job_tick()
+        time.sleep(0.2)
+    operators._job_tick()
+    assert job.state == "done", "\n".join(job.lines[-20:])
+    assert (out / "report.html").is_file()
+    metrics = json.loads((out / "metrics.json").read_text())
+    (entry,) = [m for m in metrics["materials"] if m["name"] == "CT"]
+    assert entry["pixels"] > 50 and entry["ciede2000_mean"] < 2.0
+    assert not job.staging.exists()
+
+
+def test_a_scene_comparison_needs_a_camera(addon):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with pytest.raises(RuntimeError, match="no camera"):
+        bpy.ops.ctlab.scene_comparison(size=32, samples=1)

@@ -474,6 +474,9 @@ def _job_tick():
             running = True
         elif not getattr(job, "handled", False):
             job.handled = True
+            if getattr(job, "staging", None) is not None:       # the scene job's file copy
+                import shutil
+                shutil.rmtree(job.staging, ignore_errors=True)
             if kind == "comparison" and state == "done" and job.open_report and \
                     not bpy.app.background:
                 bpy.ops.wm.url_open(url=job.report.as_uri())
@@ -582,6 +585,72 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
         context.window_manager.ctlab_job_progress = 0.0
         _start_tick()
         self.report({'INFO'}, f"comparison started in the background -> {out}")
+        return {'FINISHED'}
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+
+class CTLAB_OT_scene_comparison(bpy.types.Operator):
+    """Render this scene through its camera twice in a background process, with its
+    Cook-Torrance materials and with each converted to Principled BSDF, and compare them
+    material by material (ctlab scene); the report opens when done"""
+    bl_idname = "ctlab.scene_comparison"
+    bl_label = "Compare Scene with Principled"
+    bl_options = {'REGISTER'}
+
+    directory: StringProperty(name="Output Folder", subtype='DIR_PATH', default="",
+                              description="Empty: //ctlab_scene next to the .blend, or the "
+                                          "add-on's user folder")
+    size: IntProperty(name="Size", default=384, min=16, max=4096, subtype='PIXEL',
+                      description="The longer image side (the camera's aspect is kept)")
+    samples: IntProperty(name="Samples", default=0, min=0, max=65536,
+                         description="0: the preferences' default samples")
+    light_transport: EnumProperty(name="Light Transport", items=TRANSPORT_ITEMS,
+                                  default="scene")
+    open_report: BoolProperty(name="Open Report", default=True)
+
+    def execute(self, context):
+        import shutil
+        import tempfile
+        from ..core.files import check_writable
+        from ..jobs import background_job
+        running = JOBS.get("comparison")
+        if running is not None and running.poll() in ("running", "cancelling"):
+            self.report({'ERROR'}, "a comparison is already running; cancel it first")
+            return {'CANCELLED'}
+        if context.scene.camera is None:
+            self.report({'ERROR'}, "the scene has no camera; add one to compare the scene")
+            return {'CANCELLED'}
+        folder = self.directory or ("//ctlab_scene" if bpy.data.filepath else
+                                    str(Path(default_comparison_folder()).parent / "scene"))
+        out = Path(bpy.path.abspath(folder))
+        try:
+            check_writable(out)
+        except UserError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        # the job reads a copy of the file as it is now (the open file is never written)
+        staging = Path(tempfile.mkdtemp(prefix="ctlab-scene-"))
+        copy = staging / "scene.blend"
+        try:
+            bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, relative_remap=False)
+        except RuntimeError as exc:
+            shutil.rmtree(staging, ignore_errors=True)
+            self.report({'ERROR'}, f"cannot copy the scene for the comparison: {exc}")
+            return {'CANCELLED'}
+        argv = ["scene", str(copy), "--out", str(out), "--size", str(self.size),
+                "--samples", str(self.samples or preferences.get().samples),
+                "--light-transport", self.light_transport]
+        job = background_job.Job(argv, out)
+        job.open_report = self.open_report
+        job.staging = staging                       # removed when the job ends
+        JOBS["comparison"] = job
+        wm = context.window_manager
+        wm.ctlab_job_state, wm.ctlab_job_message, wm.ctlab_job_progress = \
+            "running", "starting", 0.0
+        _start_tick()
+        self.report({'INFO'}, f"scene comparison started in the background -> {out}")
         return {'FINISHED'}
 
     def invoke(self, context, event):
@@ -702,4 +771,5 @@ CLASSES = (CTLAB_OT_build_sphere_matrix, CTLAB_OT_bake_environment, CTLAB_OT_new
            CTLAB_OT_add_node_group, CTLAB_OT_add_texture, CTLAB_OT_switch_implementation,
            CTLAB_OT_convert_to_cook_torrance, CTLAB_OT_convert_to_principled,
            CTLAB_OT_set_view_all, CTLAB_OT_sync_lighting, CTLAB_OT_render_comparison,
+           CTLAB_OT_scene_comparison,
            CTLAB_OT_cancel_comparison, CTLAB_OT_brdf_plot)

@@ -11,7 +11,8 @@ from .operators import (PLOT_IMAGE, CTLAB_OT_add_node_group, CTLAB_OT_add_textur
                         CTLAB_OT_build_sphere_matrix,
                         CTLAB_OT_cancel_comparison, CTLAB_OT_convert_to_cook_torrance,
                         CTLAB_OT_convert_to_principled, CTLAB_OT_new_material,
-                        CTLAB_OT_render_comparison, CTLAB_OT_set_view_all,
+                        CTLAB_OT_render_comparison, CTLAB_OT_scene_comparison,
+                        CTLAB_OT_set_view_all,
                         CTLAB_OT_switch_implementation, CTLAB_OT_sync_lighting, JOBS)
 from ..core.model import LIGHT_SLOTS, ggx_alpha, perceptual_roughness, transport_notes
 
@@ -237,6 +238,7 @@ class CTLAB_PT_sidebar_comparison(_Sidebar, bpy.types.Panel):
             layout.operator(CTLAB_OT_cancel_comparison.bl_idname, icon='CANCEL')
             return
         layout.operator(CTLAB_OT_render_comparison.bl_idname, icon='RENDER_RESULT')
+        layout.operator(CTLAB_OT_scene_comparison.bl_idname, icon='SCENE_DATA')
         if state == "done":
             layout.operator("wm.url_open", text="Open Report",
                             icon='HELP').url = job.report.as_uri()
