@@ -350,14 +350,20 @@ def bake_table(section: dict) -> list:
 # The sphere's material in the demo scene (addon/blender/demo_scene.py): Principled BSDF (the
 # denominator), and the model's scene transport with exact closures, with the correction, and
 # as the node group.
+# Each: (Cycles' shading system, the model's implementation or None for Principled, options).
+# An OSL material turns Cycles' OSL shading on for the whole scene, so Principled is measured
+# on both systems: the material's own cost is the ratio at the same shading system.
 SCENE_VARIANTS = {
-    "principled": None,
-    "osl scene (exact closures)": ("osl", {"g_model": "smith_ggx_correlated",
-                                           "diffuse_model": "lambert"}),
-    "osl scene (correction)": ("osl", {"g_model": "cook_torrance", "diffuse_model": "disney"}),
-    "nodes scene": ("nodes", {"g_model": "smith_ggx_correlated", "diffuse_model": "lambert",
-                              "ibl": "split_sum"}),
+    "principled": ("svm", None, {}),
+    "principled (osl shading)": ("osl", None, {}),
+    "osl scene (exact closures)": ("osl", "osl", {"g_model": "smith_ggx_correlated",
+                                                  "diffuse_model": "lambert"}),
+    "osl scene (correction)": ("osl", "osl", {"g_model": "cook_torrance",
+                                              "diffuse_model": "disney"}),
+    "nodes scene": ("svm", "nodes", {"g_model": "smith_ggx_correlated",
+                                     "diffuse_model": "lambert", "ibl": "split_sum"}),
 }
+SAME_SYSTEM = {"osl": "principled (osl shading)", "svm": "principled"}
 
 
 def bench_scene(quick: bool, work: Path) -> dict:
@@ -368,15 +374,14 @@ def bench_scene(quick: bool, work: Path) -> dict:
     world bake of a Sky Texture when the add-on has it."""
     from addon.blender import demo_scene, light_sync, materials, renderer
     from addon.core.model import ModelOptions
-    size, samples, rounds = ((128, 96), 16, 1) if quick else ((320, 240), 64, 3)
+    size, samples, rounds = ((128, 96), 16, 1) if quick else ((320, 240), 64, 4)
     scene, sphere, other = demo_scene.build("hdri", *size)
     demo_scene.set_material(other, demo_scene.principled_for(demo_scene.ORANGE, "Orange"))
     mats = {}
-    for name, variant in SCENE_VARIANTS.items():
-        if variant is None:
+    for name, (_system, impl, model) in SCENE_VARIANTS.items():
+        if impl is None:
             mats[name] = demo_scene.principled_for(demo_scene.METAL)
         else:
-            impl, model = variant
             mats[name] = materials.model_material(
                 name, impl, ModelOptions(light_transport="scene", **model), **demo_scene.METAL)
             demo_scene.set_material(sphere, mats[name])
@@ -384,7 +389,8 @@ def bench_scene(quick: bool, work: Path) -> dict:
 
     def timed(name, samples_):
         demo_scene.set_material(sphere, mats[name])
-        shader = "principled" if SCENE_VARIANTS[name] is None else SCENE_VARIANTS[name][0]
+        system, impl, _model = SCENE_VARIANTS[name]
+        shader = "osl" if system == "osl" else (impl or "principled")
         renderer.configure(scene, shader, "full", samples_, path_traced=True)
         d = renderer.render(scene, work / f"scene-{len(os.listdir(work))}",
                             {"width": size[0], "height": size[1]})
@@ -398,22 +404,34 @@ def bench_scene(quick: bool, work: Path) -> dict:
         for name in (names if i % 2 == 0 else names[::-1]):
             times[name].append(timed(name, samples))
             print(f"scene: {name}: {times[name][-1]:.2f} s", flush=True)
-    base = statistics.median(times["principled"])
+    def ratio(name, over):
+        return round(statistics.median(times[name]) / statistics.median(times[over]), 3)
     out = {"scene": {"size": list(size), "samples": samples, "rounds": rounds,
                      "objects": "metal sphere + orange sphere + red cube + floor + area light "
                                 "+ emissive panel, forest.exr"},
            "seconds": {k: [round(t, 3) for t in v] for k, v in times.items()},
-           "ratio_over_principled": {k: round(statistics.median(v) / base, 3)
-                                     for k, v in times.items() if k != "principled"}}
+           "ratio_over_principled": {k: ratio(k, "principled") for k in times
+                                     if k != "principled"},
+           "ratio_same_shading": {k: ratio(k, SAME_SYSTEM[v[0]]) for k, v in
+                                  SCENE_VARIANTS.items() if v[1] is not None}}
     try:
         from addon.blender import world_bake
     except ImportError:
         world_bake = None
     if world_bake is not None:
         demo_scene.build("sky", 64, 48)
-        start = time.perf_counter()
-        world_bake.bake_world(bpy.context.scene.world, 1024)
-        out["sky_bake_seconds_1k"] = round(time.perf_counter() - start, 2)
+        saved = os.environ.get("CTLAB_CACHE")
+        with tempfile.TemporaryDirectory() as empty:        # cold: nothing cached
+            os.environ["CTLAB_CACHE"] = empty
+            try:
+                start = time.perf_counter()
+                world_bake.bake_world(bpy.context.scene.world, 1024)
+                out["sky_bake_seconds_1k"] = round(time.perf_counter() - start, 2)
+            finally:
+                if saved is None:
+                    os.environ.pop("CTLAB_CACHE", None)
+                else:
+                    os.environ["CTLAB_CACHE"] = saved
     return out
 
 
@@ -422,11 +440,14 @@ def scene_table(section: dict) -> list:
     lines = [f"The demo scene ({sc['objects']}), {sc['size'][0]}x{sc['size'][1]} px, "
              f"{sc['samples']} samples, Cycles CPU, one process; render = Cycles' sync + "
              f"render; ratio = median over {sc['rounds']} alternating rounds.", "",
-             "| sphere's material | seconds | / Principled |", "|---|---|---|"]
+             "| sphere's material | seconds | / Principled (SVM) | / Principled, same "
+             "shading system |", "|---|---|---|---|"]
     for name, secs in section["seconds"].items():
         ratio = section["ratio_over_principled"].get(name)
+        same = section["ratio_same_shading"].get(name)
         lines.append(f"| {name} | {', '.join(f'{t:.2f}' for t in secs)} | "
-                     + ("1" if ratio is None else f"**{ratio:.2f}x**") + " |")
+                     + ("1" if ratio is None else f"{ratio:.2f}x") + " | "
+                     + ("–" if same is None else f"**{same:.2f}x**") + " |")
     if "sky_bake_seconds_1k" in section:
         lines += ["", f"World bake of a Sky Texture at 1024x512: "
                       f"**{section['sky_bake_seconds_1k']:.2f} s** (cold)."]

@@ -120,6 +120,7 @@ def principled_to_model(mat: bpy.types.Material, scene: bpy.types.Scene, impl: s
         tree.links.new(model_node.shader_output(node), link.to_socket)
     tree.nodes.remove(bsdf)
     model_node.link_geometry_normal(tree, node)
+    model_node.connect_residual(tree, node)
     if impl == "nodes":
         model_node.set_option(node, "ibl", "split_sum")
     model_node.set_option(node, "light_transport", light_transport)
@@ -164,6 +165,7 @@ def model_to_principled(mat: bpy.types.Material) -> list:
     for link in list(model_node.shader_output(node).links):
         tree.links.new(bsdf.outputs["BSDF"], link.to_socket)
     model_node.remove_drivers(tree, node)
+    model_node.remove_residual(tree, node)
     tree.nodes.remove(node)
     mat.cycles.emission_sampling = mat.pop(SAVED_EMISSION_SAMPLING, 'AUTO')
     return notes

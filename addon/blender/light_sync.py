@@ -33,7 +33,7 @@ def key_sun(scene: bpy.types.Scene) -> bpy.types.Object | None:
     its first Sun light by name that renders, else None (no key light)."""
     chosen = getattr(scene, "ctlab_sun", None)
     if chosen is not None and chosen.type == 'LIGHT' and chosen.data.type == 'SUN' \
-            and chosen.name in scene.objects:
+            and chosen.name in scene.objects and scene_lights.renders(chosen, scene):
         return chosen
     suns = sorted((o for o in scene.objects if o.type == 'LIGHT' and o.data.type == 'SUN'
                    and scene_lights.renders(o, scene)), key=lambda o: o.name)
@@ -154,6 +154,20 @@ def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=T
     scene_lights.sync_slots(tree, node, used)
     if environment:
         update_environment(node, scene, env)
+    if model_node.implementation(node) == "osl" and \
+            model_node.get_option(node, "light_transport") == "scene":
+        add_residual_pass(scene)
+
+
+def add_residual_pass(scene: bpy.types.Scene) -> None:
+    """The view layers' AOV for the OSL shader's residual albedo (model_node.connect_residual),
+    so that it shows as a render pass; added once, never removed."""
+    from ..core.model import OSL_RESIDUAL
+    for layer in scene.view_layers:
+        if OSL_RESIDUAL not in layer.aovs:
+            aov = layer.aovs.add()
+            aov.name = OSL_RESIDUAL
+            aov.type = 'COLOR'
 
 
 def user_materials():

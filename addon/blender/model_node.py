@@ -123,6 +123,14 @@ def connect_residual(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
     tree.links.new(node.outputs[OSL_RESIDUAL], aov.inputs["Color"])
 
 
+def remove_residual(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
+    """Remove the AOV Output that connect_residual gave the node (before the node goes)."""
+    residual = node.outputs.get(OSL_RESIDUAL)
+    for link in list(residual.links) if residual is not None else ():
+        if link.to_node.bl_idname == "ShaderNodeOutputAOV":
+            tree.nodes.remove(link.to_node)
+
+
 def link_geometry_normal(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
     """The OSL shader reads its normal from a socket: feed it the geometry's when unlinked
     (the node group falls back to the geometry normal by itself)."""
@@ -272,10 +280,12 @@ def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bp
         set_option(new, key, value)
     for link in list(shader_output(old).links):
         tree.links.new(shader_output(new), link.to_socket)
+    remove_residual(tree, old)
     drivers.remove_drivers(tree, old)
     tree.nodes.remove(old)
     new.name = new.label = NODE_NAME
     link_geometry_normal(tree, new)
+    connect_residual(tree, new)
     return new
 
 

@@ -634,7 +634,8 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
         staging = Path(tempfile.mkdtemp(prefix="ctlab-scene-"))
         copy = staging / "scene.blend"
         try:
-            bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, relative_remap=False)
+            # relative paths are remapped to the copy's folder, so they still resolve
+            bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, relative_remap=True)
         except RuntimeError as exc:
             shutil.rmtree(staging, ignore_errors=True)
             self.report({'ERROR'}, f"cannot copy the scene for the comparison: {exc}")
@@ -642,7 +643,12 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
         argv = ["scene", str(copy), "--out", str(out), "--size", str(self.size),
                 "--samples", str(self.samples or preferences.get().samples),
                 "--light-transport", self.light_transport]
-        job = background_job.Job(argv, out)
+        try:
+            job = background_job.Job(argv, out)
+        except OSError as exc:
+            shutil.rmtree(staging, ignore_errors=True)
+            self.report({'ERROR'}, f"cannot start the scene comparison: {exc}")
+            return {'CANCELLED'}
         job.open_report = self.open_report
         job.staging = staging                       # removed when the job ends
         JOBS["comparison"] = job
