@@ -426,8 +426,8 @@ def write_scene_report(out: Path, data: dict) -> Path:
     outside = data["outside"]
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: scene {html.escape(data['scene'])}</title>
-{STYLE}</head><body>
-<h1>Cook-Torrance Lab: {html.escape(Path(data['blend']).name)}, scene {html.escape(data['scene'])}</h1>
+{STYLE}<style>figure img {{ width: 360px; max-width: 100%; }}</style></head><body>
+<h1>Cook-Torrance Lab: {html.escape(Path(data['blend']).name)}, scene “{html.escape(data['scene'])}”</h1>
 <p>The scene through its camera {html.escape(data['camera'])}, rendered twice with the same
 Cycles settings ({data['width']}&times;{data['height']} px, {data['samples']} samples, seed
 {data['seed']}, light transport <b>{data['light_transport']}</b>): {direction}. Each
