@@ -520,6 +520,23 @@ def show_plot(path: Path) -> bpy.types.Image:
     return image
 
 
+def _comparison_running(op) -> bool:
+    """Whether a comparison job runs (reported as the operator's error)."""
+    running = JOBS.get("comparison")
+    if running is not None and running.poll() in ("running", "cancelling"):
+        op.report({'ERROR'}, "a comparison is already running; cancel it first")
+        return True
+    return False
+
+
+def _start_comparison(context, job) -> None:
+    """Follow a started comparison job in the sidebar (the timer polls it)."""
+    JOBS["comparison"] = job
+    wm = context.window_manager
+    wm.ctlab_job_state, wm.ctlab_job_message, wm.ctlab_job_progress = "running", "starting", 0.0
+    _start_tick()
+
+
 def default_comparison_folder() -> str:
     if bpy.data.filepath:
         return "//ctlab_comparison"
@@ -548,9 +565,7 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
         from ..core.files import check_writable
         from ..jobs import background_job
         from ..jobs.cli import argv as job_argv
-        running = JOBS.get("comparison")
-        if running is not None and running.poll() in ("running", "cancelling"):
-            self.report({'ERROR'}, "a comparison is already running; cancel it first")
+        if _comparison_running(self):
             return {'CANCELLED'}
         out = Path(bpy.path.abspath(self.directory or default_comparison_folder()))
         scene = context.scene
@@ -579,11 +594,7 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
             return {'CANCELLED'}
         job = background_job.Job(argv, out)
         job.open_report = self.open_report
-        JOBS["comparison"] = job
-        context.window_manager.ctlab_job_state = "running"
-        context.window_manager.ctlab_job_message = "starting"
-        context.window_manager.ctlab_job_progress = 0.0
-        _start_tick()
+        _start_comparison(context, job)
         self.report({'INFO'}, f"comparison started in the background -> {out}")
         return {'FINISHED'}
 
@@ -615,9 +626,7 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
         import tempfile
         from ..core.files import check_writable
         from ..jobs import background_job
-        running = JOBS.get("comparison")
-        if running is not None and running.poll() in ("running", "cancelling"):
-            self.report({'ERROR'}, "a comparison is already running; cancel it first")
+        if _comparison_running(self):
             return {'CANCELLED'}
         if context.scene.camera is None:
             self.report({'ERROR'}, "the scene has no camera; add one to compare the scene")
@@ -651,11 +660,7 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
             return {'CANCELLED'}
         job.open_report = self.open_report
         job.staging = staging                       # removed when the job ends
-        JOBS["comparison"] = job
-        wm = context.window_manager
-        wm.ctlab_job_state, wm.ctlab_job_message, wm.ctlab_job_progress = \
-            "running", "starting", 0.0
-        _start_tick()
+        _start_comparison(context, job)
         self.report({'INFO'}, f"scene comparison started in the background -> {out}")
         return {'FINISHED'}
 
