@@ -1,7 +1,9 @@
-"""Write the DFG tables the extension ships (addon/data/dfg_<G>.npy and dfg.json, its
-parameters): the split-sum's scale and bias of specColor and the Disney factor, integrated for
-this model's D and each G (addon/core/ibl_bake.py, dfg_table). Run it after changing the model
-or the tables' parameters; tests/test_ibl_bake.py fails until it is run.
+"""Write the model's tables the extension ships (addon/data, with dfg.json, their parameters),
+so that no first use integrates them: per G option, dfg_<G>.npy (the split-sum's scale and
+bias of specColor and the Disney factor, ibl_bake.dfg_table) and dominant_<G>.npy (the
+corrected split-sum's dominant direction, ibl_bake.dominant_table), integrated for this
+model's D and each G (addon/core/ibl_bake.py). Run it after changing the model or the tables'
+parameters; tests/test_ibl_bake.py fails until it is run.
 
     .venv-bpy<series>/bin/python scripts/build_tables.py
 """
@@ -24,11 +26,13 @@ from addon.core.model import G_MODELS  # noqa: E402
 def main() -> None:
     DATA_DIR.mkdir(parents=True, exist_ok=True)
     for g in G_MODELS:
-        buf = io.BytesIO()
-        np.save(buf, ibl_bake.dfg_table(g))
-        with atomic_path(DATA_DIR / f"dfg_{g}.npy") as tmp:
-            tmp.write_bytes(buf.getvalue())
-        print(f"wrote {DATA_DIR / f'dfg_{g}.npy'}")
+        for name, table in ((f"dfg_{g}", ibl_bake.dfg_table), (f"dominant_{g}",
+                                                                ibl_bake.dominant_table)):
+            buf = io.BytesIO()
+            np.save(buf, table(g))
+            with atomic_path(DATA_DIR / f"{name}.npy") as tmp:
+                tmp.write_bytes(buf.getvalue())
+            print(f"wrote {DATA_DIR / f'{name}.npy'}")
     write_text(DATA_DIR / "dfg.json", json.dumps(ibl_bake.table_signature(), indent=2))
 
 

@@ -276,26 +276,34 @@ def test_every_level_of_a_real_size_source_against_a_direct_convolution(tmp_path
         assert np.median(rel) < 0.002 and rel.max() < 0.015, (width, k, np.median(rel), rel.max())
 
 
-def test_the_shipped_dfg_tables_are_what_integrating_them_gives(tmp_path, monkeypatch):
-    """The extension ships the DFG tables (addon/data, scripts/build_tables.py) so that a first
-    bake need not integrate them; they must equal a fresh integration with today's model and
-    parameters (run the script after changing either), and a bake in an empty cache must use
-    them without integrating."""
+def test_the_shipped_tables_are_what_integrating_them_gives(tmp_path, monkeypatch):
+    """The extension ships the model's tables, DFG and dominant direction (addon/data,
+    scripts/build_tables.py) so that a first bake, or the first OSL material, need not
+    integrate them (12 s for the dominant directions alone); they must equal a fresh
+    integration with today's model and parameters (run the script after changing either),
+    and a bake in an empty cache must use them without integrating."""
     for g in G_MODELS:
         shipped = ibl_bake.shipped_dfg(g)
-        assert shipped is not None, "addon/data lacks a table for today's parameters"
+        assert shipped is not None, "addon/data lacks a DFG table for today's parameters"
         np.testing.assert_allclose(shipped, ibl_bake.dfg_table(g), rtol=1e-6, atol=1e-7,
+                                   err_msg=g)
+        shipped = ibl_bake.shipped_dominant(g)
+        assert shipped is not None, "addon/data lacks a dominant table for today's parameters"
+        np.testing.assert_allclose(shipped, ibl_bake.dominant_table(g), rtol=1e-6, atol=1e-7,
                                    err_msg=g)
     monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "empty-cache"))
 
     def no_integration(*args, **kw):
         raise AssertionError("the bake integrated a table it ships")
     monkeypatch.setattr(ibl_bake, "dfg_table", no_integration)
+    monkeypatch.setattr(ibl_bake, "dominant_table", no_integration)
     path = tmp_path / "sky.exr"
     write_float_exr(path, np.ones((32, 64, 3), np.float32))
     folder = ibl_bake.bake(path)
     np.testing.assert_allclose(read_image(folder / ibl_bake.dfg_file("cook_torrance")),
                                ibl_bake.shipped_dfg("cook_torrance"), rtol=1e-7)
+    np.testing.assert_allclose(read_image(folder / ibl_bake.ms_file("unity_smith_joint"))[..., 2],
+                               ibl_bake.shipped_dominant("unity_smith_joint"), rtol=1e-7)
 
 
 @pytest.mark.parametrize("g_model", ["cook_torrance", "smith_ggx_correlated"])

@@ -279,23 +279,40 @@ def table_signature() -> dict:
             "samples": {g: list(s) for g, s in DFG_SAMPLES.items()}}
 
 
-def shipped_dfg(g_model: str) -> np.ndarray | None:
-    """The shipped DFG table of one G option, or None when absent or made for other
-    parameters."""
+def _shipped(name: str, shape: tuple) -> np.ndarray | None:
+    """A table the extension ships (addon/data/NAME.npy, scripts/build_tables.py), or None
+    when absent, of another shape or made for other parameters (dfg.json)."""
     try:
         meta = json.loads((DATA_DIR / "dfg.json").read_text())
-        table = np.load(DATA_DIR / f"dfg_{g_model}.npy")
+        table = np.load(DATA_DIR / f"{name}.npy")
     except (OSError, ValueError):
         return None
-    if meta != table_signature() or table.shape != (DFG_SIZE, DFG_SIZE, 3):
+    if meta != table_signature() or table.shape != shape:
         return None
     return table.astype(np.float32)
+
+
+def shipped_dfg(g_model: str) -> np.ndarray | None:
+    """The shipped DFG table of one G option, or None (_shipped)."""
+    return _shipped(f"dfg_{g_model}", (DFG_SIZE, DFG_SIZE, 3))
+
+
+def shipped_dominant(g_model: str) -> np.ndarray | None:
+    """The shipped dominant-direction table of one G option, or None (_shipped)."""
+    return _shipped(f"dominant_{g_model}", (DFG_SIZE, DFG_SIZE))
 
 
 def dfg_values(g_model: str) -> np.ndarray:
     """The DFG table of one G option: the shipped one, else integrated."""
     table = shipped_dfg(g_model)
     return dfg_table(g_model) if table is None else table
+
+
+def dominant_values(g_model: str) -> np.ndarray:
+    """The dominant-direction table of one G option: the shipped one, else integrated (12 s
+    for the three G options on two cores)."""
+    table = shipped_dominant(g_model)
+    return dominant_table(g_model) if table is None else table
 
 
 def dominant_table(g_model: str, size: int = DFG_SIZE) -> np.ndarray:
@@ -343,7 +360,7 @@ def tables_folder() -> Path:
         for g in G_MODELS:
             dfg = dfg_values(g)
             write_float_exr(stage / dfg_file(g), dfg)
-            write_float_exr(stage / ms_file(g), ms_table(dfg, dominant_table(g)))
+            write_float_exr(stage / ms_file(g), ms_table(dfg, dominant_values(g)))
     return cache.cached(key, fill)
 
 

@@ -202,8 +202,8 @@ class CTLAB_OT_new_material(bpy.types.Operator):
             use_nodes(mat)
             tree = mat.node_tree
             tree.nodes.clear()
-            with _progress(context, "Compiling the Cook-Torrance OSL shader (the first "
-                           "takes about 15 s)..." if impl == "osl" else ""):
+            with _progress(context, "Compiling the Cook-Torrance OSL shader..."
+                           if impl == "osl" else "Building the Cook-Torrance node group..."):
                 node = model_node.new_node(tree, impl)
             model_node.connect_output(tree, node)
             model_node.link_geometry_normal(tree, node)
