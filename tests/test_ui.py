@@ -549,9 +549,15 @@ def test_scene_comparison_in_the_background(addon, tmp_path):
     demo_scene.set_material(sphere, mat)
     light_sync.sync_material(mat, scene)
     out = tmp_path / "scene"
+    # the operator's overrides reach the command line: here the OSL shader for the node
+    # group's material (Smith and Lambert: the closures are the model exactly)
     assert bpy.ops.ctlab.scene_comparison(directory=str(out), size=48, samples=4,
-                                          open_report=False) == {'FINISHED'}
+                                          shader="osl", g_model="smith_ggx_correlated",
+                                          camera="Camera", open_report=False) == {'FINISHED'}
     job = operators.JOBS["comparison"]
+    command = " ".join(job.process.args)
+    assert "'--shader=osl'" in command and "'--g=smith_ggx_correlated'" in command
+    assert "'--camera=Camera'" in command and "--diffuse" not in command
     start = time.monotonic()
     while job.poll() in ("running", "cancelling") and time.monotonic() - start < 300:
         operators._job_tick()
@@ -566,6 +572,69 @@ def test_scene_comparison_in_the_background(addon, tmp_path):
 
 
 def test_a_scene_comparison_needs_a_camera(addon):
+    with pytest.raises(RuntimeError, match="no camera named 'Cube'"):
+        bpy.ops.ctlab.scene_comparison(size=32, samples=1, camera="Cube")
+    with pytest.raises(RuntimeError, match="no camera named 'Nowhere'"):
+        bpy.ops.ctlab.scene_comparison(size=32, samples=1, camera="Nowhere")
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with pytest.raises(RuntimeError, match="no camera"):
         bpy.ops.ctlab.scene_comparison(size=32, samples=1)
+
+
+def test_the_panel_says_what_each_transport_sees_and_warns_of_inexact_settings(addon):
+    """The material panel's transport box: Lab says what it does not see and why term views
+    and Unity units need it; Scene names the render settings that keep it from being exact
+    (the startup file's Cycles defaults clamp indirect light at 10 and filter glossy at 1)
+    and falls silent once the jobs' exact settings are set."""
+    from addon.blender import renderer
+    scene = bpy.context.scene
+    cube = bpy.data.objects["Cube"]
+    bpy.context.view_layer.objects.active = cube
+    bpy.ops.ctlab.new_material(implementation="osl")
+    mat = cube.active_material
+    scene.render.engine = 'CYCLES'
+
+    def labels():
+        return [c[1] for c in draw(ui.CTLAB_PT_material, object=cube, material=mat)
+                if c[0] == "label"]
+    assert mat.ctlab_light_transport == "scene"            # the UI's default
+    text = labels()
+    assert any(t.startswith("Scene: path traced by Cycles") for t in text)
+    (warning,) = [t for t in text if t.startswith("Not exact with")]
+    assert "Clamp Indirect 10" in warning and "Filter Glossy 1" in warning
+    renderer.set_exact_path_tracing(scene)
+    assert not any(t.startswith("Not exact with") for t in labels())
+    mat.ctlab_g_model = "cook_torrance"
+    assert any("correction emission" in t for t in labels())
+    mat.ctlab_units = "unity"
+    assert any("Unity units exist in Lab only" in t for t in labels())
+    mat.ctlab_units = "physical"
+    mat.ctlab_view = "D"
+    assert any("is the lab's: a term view is a BRDF value" in t for t in labels())
+    mat.ctlab_light_transport = "lab"
+    text = labels()
+    assert any("does not see other objects" in t for t in text)
+    assert any(t.startswith("Term views and Unity units need Lab") for t in text)
+    assert not any(t.startswith("Not exact with") for t in text)
+
+
+def test_light_sync_reports_slot_lights_without_a_key_sun(addon):
+    """The startup file has a Point light and no Sun: light sync's report says there is no
+    key Sun and names the Point light in a slot; with a Sun added, the Sun is the key light
+    and the Point stays in its slot. A material whose emission someone set to be sampled as a
+    light is set back to None by the sync (a view or a correction is never a lamp)."""
+    cube = bpy.data.objects["Cube"]
+    bpy.context.view_layer.objects.active = cube
+    bpy.ops.ctlab.new_material(implementation="nodes")
+    mat = cube.active_material
+    assert mat.cycles.emission_sampling == 'NONE'
+    mat.cycles.emission_sampling = 'AUTO'
+    scene = bpy.context.scene
+    assert operators.sync_summary(scene, 1) == \
+        "1 material follow no key Sun; 1 light in slots (Light) and the world"
+    assert bpy.ops.ctlab.sync_lighting() == {'FINISHED'}
+    assert mat.cycles.emission_sampling == 'NONE'
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
+    scene.collection.objects.link(sun)
+    assert operators.sync_summary(scene, 2) == \
+        "2 materials follow the key Sun Sun; 1 light in slots (Light) and the world"

@@ -29,9 +29,11 @@ UNITS = ("physical", "unity")
 LIGHT_TRANSPORTS = ("lab", "scene")
 LIGHT_TRANSPORT_LABELS = {
     "lab": ("Lab", "The model lights itself from the world's HDRI, the key Sun and the light "
-            "slots, exactly (term views, the matrix, parity); other objects are not seen"),
+            "slots, exactly (term views, the matrix, parity; the command line's default); "
+            "other objects are not seen"),
     "scene": ("Scene", "Path traced by Cycles: reflects other objects, receives bounce and "
-              "mesh-emitter light, any world; exact for the world and the lights")}
+              "mesh-emitter light, any world; exact for the world and the lights (the "
+              "default of materials made in the UI)")}
 # Views the scene transport path traces; every other view is the lab's (a path tracer cannot
 # split direct from indirect light inside a material; Cycles' render passes do that).
 SCENE_VIEWS = ("full",)
@@ -42,12 +44,17 @@ SCENE_EXACT_G = "smith_ggx_correlated"
 # (Unity's reflection-probe approximation) read the files baked by core.ibl_bake.
 IBL_MODES = ("reference", "split_sum", "unity", "split_sum_corrected")
 BAKED_IBL_MODES = ("split_sum", "unity", "split_sum_corrected")
-IBL_LABELS = {"reference": ("Reference", "Monte Carlo integration against the HDRI"),
-              "split_sum": ("Split-Sum", "Pre-filtered levels and the DFG table (baked, cached)"),
-              "unity": ("Unity", "Unity's reflection-probe approximation (baked, cached)"),
+# The IBL mode is the lab transport's: the scene transport path traces the world.
+LAB_ONLY = " (Lab transport; Scene path traces the world)"
+IBL_LABELS = {"reference": ("Reference", "Monte Carlo integration against the HDRI" + LAB_ONLY),
+              "split_sum": ("Split-Sum", "Pre-filtered levels and the DFG table (baked, "
+                            "cached)" + LAB_ONLY),
+              "unity": ("Unity", "Unity's reflection-probe approximation (baked, cached)"
+                        + LAB_ONLY),
               "split_sum_corrected": ("Split-Sum Corrected",
                                       "The split-sum toward the lobe's dominant direction "
-                                      "(Lagarde and de Rousiers 2014; baked, cached)")}
+                                      "(Lagarde and de Rousiers 2014; baked, cached)"
+                                      + LAB_ONLY)}
 
 # --- Views (docs/model.md "Views"), in this order everywhere (the node group's View index).
 LIGHTING_VIEWS = ("full", "direct", "indirect", "direct_diffuse", "direct_specular",
@@ -329,13 +336,20 @@ def transport_notes(impl: str, light_transport: str, view: str, units: str, g_mo
     (docs/model.md "Light transport"); ``impl`` "osl" or "nodes"."""
     if light_transport == "lab":
         return ["Lab: lit by the world's HDRI, the key Sun and the light slots, computed by "
-                "the model itself and shown as emission (exact; term views and Unity units",
-                "need it). It does not see other objects, bounce light or mesh emitters."]
+                "the model itself and shown as emission (exact).",
+                "It does not see other objects, bounce light or mesh emitters.",
+                "Term views and Unity units need Lab: a term view is a BRDF value, not light, "
+                "and Unity's pi on direct light has no closure.",
+                "New materials made in the UI use Scene."]
     notes = ["Scene: path traced by Cycles like any material: reflects other objects, gets "
-             "bounce light, mesh emitters, every light and any world."]
+             "bounce light, mesh emitters, every light and any world (the UI's default)."]
     if view not in SCENE_VIEWS:
-        notes.append(f"The view {view!r} is the lab's (only the full view is path traced; "
-                     "Cycles' render passes split direct and indirect).")
+        notes.append(f"The view {view!r} is the lab's: a term view is a BRDF value, not light, "
+                     "and a path tracer cannot split direct from indirect inside a material "
+                     "(Cycles' render passes do).")
+    if units != UNITS[0]:
+        notes.append("Unity units exist in Lab only (pi on direct light has no closure): "
+                     "this material renders in Lab.")
     exact = g_model == SCENE_EXACT_G and energy == ENERGY_MODES[0]
     if impl == "osl":
         if exact:

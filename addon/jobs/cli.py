@@ -161,11 +161,12 @@ SCENE_ARGS = (
     Arg("--albedo", "albedo", "R,G,B linear albedo (default: gold)", str,
         ",".join(map(str, MATRIX_ALBEDO))),
     Arg("--ibl", "ibl", "indirect light: " + "|".join(IBL_MODES) + " (default: reference; "
-        "split_sum for the node group; split_sum and unity use the files of 'ctlab bake', "
-        "made and cached on demand)"),
+        "split_sum for the node group; the baked modes use the files of 'ctlab bake', made and "
+        "cached on demand; the lab transport's: scene path traces the world)"),
     Arg("--g", "g_model", "|".join(G_MODELS), str, G_MODELS[0]),
     Arg("--diffuse", "diffuse_model", "|".join(DIFFUSE_MODELS), str, DIFFUSE_MODELS[0]),
-    Arg("--units", "units", "|".join(UNITS), str, UNITS[0]),
+    Arg("--units", "units", "|".join(UNITS) + " (unity: x pi on direct light; lab transport "
+        "only)", str, UNITS[0]),
     Arg("--energy", "energy", "|".join(ENERGY_MODES) + " (compensated: Kulla-Conty multiple "
         "scattering)", str, ENERGY_MODES[0]),
     Arg("--light-transport", "light_transport", "|".join(LIGHT_TRANSPORTS) + " (lab: the "

@@ -13,7 +13,7 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        IntProperty, StringProperty)
 
 from . import preferences
-from .properties import TRANSPORT_ITEMS, VIEW_ITEMS
+from .properties import DIFFUSE_ITEMS, ENERGY_ITEMS, G_ITEMS, TRANSPORT_ITEMS, VIEW_ITEMS
 from ..blender import light_sync, model_node
 from ..blender.drivers import world_nodes
 from ..blender.scene_builder import build_matrix
@@ -602,6 +602,10 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
         return context.window_manager.invoke_props_dialog(self)
 
 
+# "each material's own", before a switch's values (the scene comparison's overrides)
+_KEEP = (("MATERIAL", "Each Material's", "Each model material keeps its own setting"),)
+
+
 class CTLAB_OT_scene_comparison(bpy.types.Operator):
     """Render this scene through its camera twice in a background process, with its
     Cook-Torrance materials and with each converted to Principled BSDF, and compare them
@@ -619,7 +623,31 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
                          description="0: the preferences' default samples")
     light_transport: EnumProperty(name="Light Transport", items=TRANSPORT_ITEMS,
                                   default="scene")
+    convert: BoolProperty(name="Convert Principled", default=False,
+                          description="The other way: the scene's Principled materials "
+                                      "converted to the model, the originals as the reference")
+    shader: EnumProperty(name="Implementation", items=_KEEP + preferences.IMPLEMENTATION_ITEMS,
+                         default="MATERIAL")
+    g_model: EnumProperty(name="G", items=_KEEP + G_ITEMS, default="MATERIAL")
+    diffuse_model: EnumProperty(name="Diffuse", items=_KEEP + DIFFUSE_ITEMS, default="MATERIAL")
+    energy: EnumProperty(name="Energy", items=_KEEP + ENERGY_ITEMS, default="MATERIAL")
+    camera: StringProperty(name="Camera", default="",
+                           description="A camera object of the scene (empty: the scene's)")
     open_report: BoolProperty(name="Open Report", default=True)
+
+    def command(self, blend: Path, out: Path) -> list:
+        """The ``ctlab scene`` command line of these settings."""
+        argv = ["scene", str(blend), "--out", str(out), "--size", str(self.size),
+                "--samples", str(self.samples or preferences.get().samples),
+                "--light-transport", self.light_transport]
+        if self.convert:
+            argv.append("--convert")
+        for flag, value in (("--shader", self.shader), ("--g", self.g_model),
+                            ("--diffuse", self.diffuse_model), ("--energy", self.energy),
+                            ("--camera", self.camera)):
+            if value and value != "MATERIAL":
+                argv.append(f"{flag}={value}")
+        return argv
 
     def execute(self, context):
         import shutil
@@ -628,8 +656,10 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
         from ..jobs import background_job
         if _comparison_running(self):
             return {'CANCELLED'}
-        if context.scene.camera is None:
-            self.report({'ERROR'}, "the scene has no camera; add one to compare the scene")
+        camera = bpy.data.objects.get(self.camera) if self.camera else context.scene.camera
+        if camera is None or camera.type != 'CAMERA':
+            self.report({'ERROR'}, f"no camera named {self.camera!r} in this file" if
+                        self.camera else "the scene has no camera; add one to compare the scene")
             return {'CANCELLED'}
         folder = self.directory or ("//ctlab_scene" if bpy.data.filepath else
                                     str(Path(default_comparison_folder()).parent / "scene"))
@@ -649,11 +679,8 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
             shutil.rmtree(staging, ignore_errors=True)
             self.report({'ERROR'}, f"cannot copy the scene for the comparison: {exc}")
             return {'CANCELLED'}
-        argv = ["scene", str(copy), "--out", str(out), "--size", str(self.size),
-                "--samples", str(self.samples or preferences.get().samples),
-                "--light-transport", self.light_transport]
         try:
-            job = background_job.Job(argv, out)
+            job = background_job.Job(self.command(copy, out), out)
         except OSError as exc:
             shutil.rmtree(staging, ignore_errors=True)
             self.report({'ERROR'}, f"cannot start the scene comparison: {exc}")

@@ -54,9 +54,6 @@ def _transport_box(layout, scene, node) -> None:
     for i, line in enumerate(transport_notes(model_node.implementation(node), **options)):
         box.label(text=line, icon='LIGHT' if i == 0 else 'BLANK1')
     if options["light_transport"] == "scene":
-        if options["units"] != "physical":
-            box.label(text="Unity units exist in the Lab transport only: shown as Lab",
-                      icon='ERROR')
         inexact = renderer.inexact_path_tracing(scene) if scene.render.engine == 'CYCLES' \
             else []
         if inexact:
