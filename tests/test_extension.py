@@ -33,6 +33,10 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
     import zipfile
     names = zipfile.ZipFile(zips[0]).namelist()
     assert "osl/cook_torrance.osl" in names and "__init__.py" in names
+    # the manifest's licences travel with the code: the GPL's text and the font's OFL
+    assert "LICENSE" in names and "addon/data/font_atlas.LICENSE.txt" in names
+    assert "GNU GENERAL PUBLIC LICENSE" in (ROOT / "LICENSE").read_text()[:200]
+    assert "addon/data/dominant_cook_torrance.npy" in names
     assert not any(n.startswith(("tests/", "scripts/", ".venv", ".ci")) for n in names)
 
     script = textwrap.dedent(f"""
