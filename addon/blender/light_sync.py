@@ -154,8 +154,7 @@ def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=T
     scene_lights.sync_slots(tree, node, used)
     if environment:
         update_environment(node, scene, env)
-    if model_node.implementation(node) == "osl" and \
-            model_node.get_option(node, "light_transport") == "scene":
+    if model_node.get_option(node, "light_transport") == "scene":
         add_residual_pass(scene)
 
 

@@ -112,20 +112,32 @@ def connect_output(tree: bpy.types.NodeTree, node: bpy.types.Node) -> bpy.types.
     return out
 
 
+def residual_output(node: bpy.types.Node) -> bpy.types.NodeSocket | None:
+    """The model's residual albedo output (core.model OSL_RESIDUAL): the OSL shader's, or the
+    node group's Residual Albedo where its interface has one (core.model GROUP_OUTPUTS);
+    None when the node has none."""
+    if implementation(node) == "osl":
+        return node.outputs.get(OSL_RESIDUAL)
+    if implementation(node) == "nodes":
+        return node.outputs.get(node_group.RESIDUAL_OUTPUT)
+    return None
+
+
 def connect_residual(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
-    """The OSL shader's residual albedo into an AOV Output of the same name (core.model
-    OSL_RESIDUAL), so a view layer with that AOV shows it as a render pass."""
-    if implementation(node) != "osl" or OSL_RESIDUAL not in node.outputs:
+    """The model's residual albedo (``residual_output``) into an AOV Output named
+    core.model OSL_RESIDUAL, so a view layer with that AOV shows it as a render pass."""
+    residual = residual_output(node)
+    if residual is None:
         return
     aov = tree.nodes.new("ShaderNodeOutputAOV")
     aov.location = (node.location.x + 400, node.location.y - 200)
     aov.aov_name = OSL_RESIDUAL
-    tree.links.new(node.outputs[OSL_RESIDUAL], aov.inputs["Color"])
+    tree.links.new(residual, aov.inputs["Color"])
 
 
 def remove_residual(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
     """Remove the AOV Output that connect_residual gave the node (before the node goes)."""
-    residual = node.outputs.get(OSL_RESIDUAL)
+    residual = residual_output(node)
     for link in list(residual.links) if residual is not None else ():
         if link.to_node.bl_idname == "ShaderNodeOutputAOV":
             tree.nodes.remove(link.to_node)

@@ -4,9 +4,10 @@ The description is data: frames of named nodes written as nested calls (see the 
 This module parses each expression into Blender shader nodes, wires them, puts each frame's
 nodes into a frame named after the term, and selects the view with the View input. The group's
 sockets are the model's interface (core.model.GROUP_INPUTS). The baked split-sum files
-(core/ibl_bake.py) are loaded as images by ``set_bake``. With Light Transport Scene = 1 and
-the full view, the Emission output is the model as Cycles closures instead (the description's
-[scene], ``_scene_transport``).
+(core/ibl_bake.py) are loaded as images by ``set_bake``, with the scene transport's tables
+that this module integrates (``correction_table_folder``). With Light Transport Scene = 1
+and the full view, the Emission output is the model as Cycles closures instead, plus the
+correction emission (the description's [scene], ``_scene_transport``).
 """
 
 from __future__ import annotations
@@ -20,12 +21,20 @@ import bpy
 from ..core.errors import UserError
 from ..core.files import NODE_GROUPS_DIR
 from ..core.ibl_bake import DFG_SIZE, LEVEL_COUNT
-from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, LIGHT_SLOTS, SCENE_VIEWS, VIEWS
+from ..core.model import (G_MODELS, GROUP_INPUTS, GROUP_OUTPUTS, LIGHT_SLOTS, SCENE_VIEWS,
+                          VIEWS)
 
 DESCRIPTION = NODE_GROUPS_DIR / "cook_torrance.toml"
 TAG = "ctlab_node_group"
 BAKE_FILE = "ctlab_bake_file"           # texture nodes: which baked file they read
 BAKE_DIM = "ctlab_bake_dim"             # value nodes: that file's width or height
+MODEL_TABLE = "ctlab_model_table"       # texture nodes: which correction table they read
+# The group's output of the residual albedo (core.model OSL_RESIDUAL), built where the
+# interface (core.model GROUP_OUTPUTS) has it
+RESIDUAL_OUTPUT = "Residual Albedo"
+# What the description's [scene] table must hold (the scene transport)
+SCENE_KEYS = ("label", "on", "multi_ggx", "specular", "diffuse", "correct",
+              "correction_lights", "correction_world", "residual")
 
 
 SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "NodeSocketColor",
@@ -44,9 +53,11 @@ def load_description(path: Path = DESCRIPTION) -> dict:
     if data["lights"]["slots"] != LIGHT_SLOTS:
         raise UserError(f"{path}: it is written for {data['lights']['slots']} light slots; the "
                         f"model has {LIGHT_SLOTS}")
-    if not {"label", "on", "multi_ggx", "specular", "diffuse"} <= set(data.get("scene", {})):
-        raise UserError(f"{path}: its [scene] table needs label, on, multi_ggx, specular.* "
-                        "and diffuse.* (the scene transport's closures)")
+    if not set(SCENE_KEYS) <= set(data.get("scene", {})):
+        raise UserError(f"{path}: its [scene] table needs label, on, multi_ggx, specular.*, "
+                        "diffuse.*, correct, correction_lights, correction_world and "
+                        "residual (the scene transport's closures, its correction and its "
+                        "residual albedo)")
     if data["group"]["dfg_size"] != DFG_SIZE:
         raise UserError(f"{path}: its DFG lookups are written for {data['group']['dfg_size']}"
                         f"-texel tables; ibl_bake makes {DFG_SIZE}")
@@ -178,15 +189,20 @@ class LightPlan:
         self.key_sun = {field: parse(text) for field, text in data["lights"]["key"].items()}
         self.fields = list(self.key_sun)
         per_light = self.per_light = _per_light_names(data)
-        main, sub = {}, {}
+        main, sub, correction = {}, {}, {}
         for frame, spec in data["frames"].items():
             for name, text in spec["nodes"].items():
                 tree = _all_lights(parse(text), per_light, self.slots)
-                (sub if spec.get("per_light") else main)[name] = (frame, tree)
+                (sub if spec.get("per_light") else correction if spec.get("correction_group")
+                 else main)[name] = (frame, tree)
         self.views = {view: _all_lights(parse(text), per_light, self.slots)
                       for view, text in data["views"].items()}
+        # the scene transport's expressions (the description's [scene])
+        self.scene = {key: _all_lights(parse(data["scene"][key]), per_light, self.slots)
+                      for key in SCENE_EXPRESSIONS}
         used_outside = set()
-        for _, tree in list(main.values()) + [(None, t) for t in self.views.values()]:
+        for tree in [t for _, t in main.values()] + list(self.views.values()) + \
+                list(self.scene.values()):
             used_outside |= _refs(tree, set())
         globals_used = []
         self.exprs = {}                    # the per-light group's nodes
@@ -218,6 +234,8 @@ class LightPlan:
             else:
                 self.outputs.append((name, _kind(tree, self.exprs, sub_kinds)))
         self.main = main
+        self.correction = SubgroupPlan(
+            correction, {key: self.scene[key] for key in CORRECTION_OUTPUTS}, main, kinds)
 
     def _localise(self, tree, main):
         """A per-light expression inside the per-light group: the light's fields and the other
@@ -245,6 +263,56 @@ class LightPlan:
         return exprs
 
 
+# --- The correction group (the description's frames marked correction_group) ------------
+#
+# The scene transport's correction for the world and its residual albedo are built into a
+# group of their own ("<group> Correction"), like the per-light frames, whose inputs are the
+# main group's quantities they use and whose outputs are the world's correction (a shader:
+# its pre-filtered terms as chains of Mix Shader nodes) and the residual albedo: its many
+# texture lookups would make the main tree slow to build.
+
+CORRECTION_GROUP = "ctlab_correction_group"     # tags the correction group
+# [scene] expressions: the Mix Shader's factor, the lights' terms (main group), the world's
+# terms and the residual (the correction group's outputs)
+SCENE_EXPRESSIONS = ("correct", "correction_lights", "correction_world", "residual")
+CORRECTION_OUTPUTS = {"correction_world": ("Correction", "SHADER"),
+                      "residual": ("Residual Albedo", "RGBA")}
+
+
+class SubgroupPlan:
+    """Frames built into a group of their own, over the main group's quantities: their node
+    expressions with each main node or group input they use as an input of that group
+    (``inputs``: (socket name, kind, the main group's expression that feeds it)), and the
+    roots it outputs (``roots``: key -> expression)."""
+
+    def __init__(self, exprs: dict, roots: dict, main: dict, kinds: dict):
+        self.inputs, seen = [], set()
+
+        def localise(tree):
+            if tree[0] == "ref":
+                name = tree[1]
+                if name in exprs or name.startswith("geo."):
+                    return tree
+                label = name[3:] if name.startswith("in.") else name
+                if name.startswith("in."):
+                    kind = kinds[label]
+                elif name in main:
+                    kind = _kind(main[name][1], main, kinds)
+                else:
+                    raise UserError(f"node description: the correction group cannot use "
+                                    f"{name!r} (a per-light node)")
+                if label not in seen:
+                    seen.add(label)
+                    self.inputs.append((label, kind, tree))
+                return ("ref", "in." + label)
+            if tree[0] == "call":
+                files = 1 if tree[1] in ("env", "table") else 0    # a baked file's name
+                return ("call", tree[1], tree[2][:files] + [localise(a) for a in tree[2][files:]])
+            return tree
+        self.exprs = {name: (frame, localise(tree)) for name, (frame, tree) in exprs.items()}
+        self.roots = {key: localise(tree) for key, tree in roots.items()}
+
+
 # --- Building ----------------------------------------------------------------------------
 
 class _Builder:
@@ -266,10 +334,12 @@ class _Builder:
         self.geometry = None
         self.columns = {}
         self.horizontal = {}                # direction socket -> environment()'s parts
+        self.table_directions = {}          # (u, v) sockets -> table()'s direction
         # "colour": every term as a colour (the Value output); "emission": the closure terms
         # (CLOSURE_OPS) left out, for build_group to add as closures (the Emission output)
         self.mode = "colour"
         self.closure_terms = {}             # name -> (op, built arguments), in emission mode
+        self.chain_group = None             # prefiltered() as instances of this group
         self.closure_names = []
         for name, (_, tree) in self.exprs.items():
             if tree[0] == "call" and tree[1] in CLOSURE_OPS:
@@ -496,7 +566,7 @@ class _Builder:
         node = self.new("ShaderNodeTexEnvironment", interpolation='Linear',
                         projection='EQUIRECTANGULAR')
         node.label = key
-        node[BAKE_FILE] = key
+        node[MODEL_TABLE if key in CORRECTION_TABLES else BAKE_FILE] = key
         self.link(d, node.inputs["Vector"])
         return node.outputs["Color"]
 
@@ -508,15 +578,17 @@ class _Builder:
         node's Linear lookups use mip-maps in EEVEE). The round trip through the angles costs
         up to 4e-5 of a texel in float32; (u, v) stays half a texel inside the edges, so the
         wrapped neighbour's weight is at most about 4e-6."""
-        phi = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [0.5, u]),
-                                          6.283185307179586])
-        theta = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [v, 0.5]),
-                                            3.141592653589793])
-        cos_theta = self.call("math.COSINE", [theta])
-        return self.lookup(key, self.call("vec3", [
-            self.call("math.MULTIPLY", [cos_theta, self.call("math.COSINE", [phi])]),
-            self.call("math.MULTIPLY", [cos_theta, self.call("math.SINE", [phi])]),
-            self.call("math.SINE", [theta])]))
+        if (u, v) not in self.table_directions:     # one direction for the tables at (u, v)
+            phi = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [0.5, u]),
+                                              6.283185307179586])
+            theta = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [v, 0.5]),
+                                                3.141592653589793])
+            cos_theta = self.call("math.COSINE", [theta])
+            self.table_directions[u, v] = self.call("vec3", [
+                self.call("math.MULTIPLY", [cos_theta, self.call("math.COSINE", [phi])]),
+                self.call("math.MULTIPLY", [cos_theta, self.call("math.SINE", [phi])]),
+                self.call("math.SINE", [theta])])
+        return self.lookup(key, self.table_directions[u, v])
 
 
 def _interface(group):
@@ -569,14 +641,45 @@ def build_light_group(data: dict, plan: LightPlan, name: str) -> bpy.types.Shade
     return group
 
 
+def build_correction_group(data: dict, plan: SubgroupPlan, name: str,
+                           chain_group) -> bpy.types.ShaderNodeTree:
+    """The correction group: the frames marked correction_group once, over the plan's
+    inputs; its outputs the world's correction (a shader, its closure terms as
+    ``_closures`` builds them) and the residual albedo (a colour)."""
+    group = _tree(name, CORRECTION_GROUP)
+    group.description = ("The scene transport's correction for the world and its residual "
+                         "albedo (Cook-Torrance Lab; node_groups/cook_torrance.toml)")
+    for label, kind, _ in plan.inputs:
+        group.interface.new_socket(label, in_out='INPUT', socket_type=SOCKET_TYPES[kind])
+    for key, (label, kind) in CORRECTION_OUTPUTS.items():
+        group.interface.new_socket(label, in_out='OUTPUT', socket_type=SOCKET_TYPES[kind])
+    b = _Builder(group, data, plan.exprs)
+    b.chain_group = chain_group
+    b.group_in.location = (-600, 0)
+    b.current_frame = frame = "correction"
+    b.mode = "emission"
+    rest = b.value(plan.roots["correction_world"])
+    world = _closures(b, {"correction_world": plan.roots["correction_world"]}, None, rest,
+                      frame)
+    b.mode = "colour"
+    residual = b.value(plan.roots["residual"])
+    out = group.nodes.new("NodeGroupOutput")
+    out.location = (2800, 0)
+    group.links.new(world, out.inputs[CORRECTION_OUTPUTS["correction_world"][0]])
+    b.link(residual, out.inputs[CORRECTION_OUTPUTS["residual"][0]])
+    return group
+
+
 def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     """The node group, built anew from node_groups/cook_torrance.toml (an existing group of
     the same name made by this add-on is rebuilt in place, so materials keep using it), with
-    its per-light group ("<name> Light")."""
+    its per-light group ("<name> Light") and its correction group ("<name> Correction")."""
     data = load_description()
     name = name or data["group"]["name"]
     plan = LightPlan(data)
     light_group = build_light_group(data, plan, f"{name} Light")
+    correction_group = build_correction_group(data, plan.correction, f"{name} Correction",
+                                              build_chain_group(data, f"{name} Pre-filtered"))
     group = _tree(name, TAG)
     group.description = data["group"]["description"]
     _interface(group)
@@ -601,26 +704,33 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
 
     colour = select("colour")
     emission = _closures(b, views, view_on, select("emission"))
-    emission = _scene_transport(b, data["scene"], view_on, emission)
+    emission, residual = _scene_transport(b, data["scene"], view_on, emission,
+                                          correction_group)
     out = group.nodes.new("NodeGroupOutput")
     out.location = (2800, 0)
     group.links.new(emission, out.inputs["Emission"])
     group.links.new(colour, out.inputs["Value"])
+    if RESIDUAL_OUTPUT in out.inputs:
+        group.links.new(residual, out.inputs[RESIDUAL_OUTPUT])
     return group
 
 
-def _closures(b: _Builder, views: dict, view_on: list, rest):
+def _closures(b: _Builder, views: dict, view_on: list, rest, frame: str = "views"):
     """The Emission output: the view's colour without its closure terms, plus each term as
     an Emission closure behind Mix Shader nodes, whose zero-weight branches Cycles skips with
     every node that only they use. The views are sums of terms, so a term enters each view
-    that uses it once, with weight (View == k).
+    that uses it once, with weight (View == k) (``view_on``; None: weight 1, for a sum that
+    is not chosen by the View, the scene transport's correction).
 
     - ``gated(c, X)``: mix(nothing, X, c > 0), for a term that is zero where c <= 0 (the
       direct light where n.l <= 0).
     - ``prefiltered(x, dir, c)``: sum_k max(0, 1 - |x - k|) L_k(dir) c as a chain,
       M_6 = L_6 c, M_k = mix(L_k c, M_k+1, clamp(x - k, 0, 1)). For x in [j, j + 1] this is
-      (1 - f) L_j c + f L_j+1 c, the same sum, and Cycles reads two levels, not seven."""
-    b.current_frame = "views"
+      (1 - f) L_j c + f L_j+1 c, the same sum, and Cycles reads two levels, not seven.
+
+    The closure terms are those the last emission-mode pass met (b.closure_terms), which
+    this consumes."""
+    b.current_frame = frame
 
     def emit(colour):
         node = b.new("ShaderNodeEmission")
@@ -637,32 +747,37 @@ def _closures(b: _Builder, views: dict, view_on: list, rest):
         b.link(second, node.inputs[2])
         return node.outputs["Shader"]
 
+    def weighted(colour, weight):
+        return colour if weight is None else b.call("vec.SCALE", [colour, weight])
+
     total = emit(rest)
-    for name, (op, args) in b.closure_terms.items():
+    terms, b.closure_terms = b.closure_terms, {}
+    for name, (op, args) in terms.items():
         weight = None
-        for on, (view, tree) in zip(view_on, views.items()):
+        for k, (view, tree) in enumerate(views.items()):
             count = b.additive_count(tree, name)
             if count not in (0, 1):
                 raise UserError(f"node description: the view {view!r} must hold {name!r} at "
                                 "most once, as a term of a sum (vec.ADD), since the group's "
                                 "Emission output adds it as a closure")
-            if count:
+            if count and view_on is not None:
+                on = view_on[k]
                 weight = on if weight is None else b.call("math.ADD", [weight, on])
         if op == "gated":
             c, colour = args
             closure = mix(b.call("math.GREATER_THAN", [c, 0.0]), None,
-                          emit(b.call("vec.SCALE", [colour, weight])), name)
+                          emit(weighted(colour, weight)), name)
+        elif b.chain_group is not None:     # the chain below, as an instance of that group
+            x, direction, factor = args
+            node = b.new("ShaderNodeGroup")
+            node.node_tree = b.chain_group
+            node.label = name
+            for sock, value in zip(CHAIN_INPUTS, (x, direction, weighted(factor, weight))):
+                b.link(value, node.inputs[sock[0]])
+            closure = node.outputs[0]
         else:
             x, direction, factor = args
-            factor = b.call("vec.SCALE", [factor, weight])
-
-            def level(k):
-                return emit(b.call("vec.MULTIPLY", [
-                    b.environment(f"specular_{k}", direction), factor]))
-            closure = level(LEVEL_COUNT - 1)
-            for k in range(LEVEL_COUNT - 2, -1, -1):
-                closure = mix(b.call("math.SUBTRACT!", [x, float(k)]), level(k), closure,
-                              f"{name}: levels {k}-{LEVEL_COUNT - 1}")
+            closure = _chain(b, x, direction, weighted(factor, weight), name, emit, mix)
         add = b.new("ShaderNodeAddShader")
         b.link(total, add.inputs[0])
         b.link(closure, add.inputs[1])
@@ -670,12 +785,65 @@ def _closures(b: _Builder, views: dict, view_on: list, rest):
     return total
 
 
-def _scene_transport(b: _Builder, spec: dict, view_on: list, lab):
-    """The Emission output with the scene transport (the description's [scene]): where
-    Light Transport Scene is 1 and the View is one of SCENE_VIEWS (full), the model as
-    closures that Cycles path traces, else ``lab`` (the lab's emission). A Mix Shader of
-    factor exactly 0 or 1 selects, so Cycles skips the other side with every node that only
-    it uses.
+def _chain(b: _Builder, x, direction, factor, name: str, emit, mix):
+    """prefiltered(x, direction, factor) as a chain of Mix Shader nodes (``_closures``)."""
+    def level(k):
+        return emit(b.call("vec.MULTIPLY", [b.environment(f"specular_{k}", direction), factor]))
+    closure = level(LEVEL_COUNT - 1)
+    for k in range(LEVEL_COUNT - 2, -1, -1):
+        closure = mix(b.call("math.SUBTRACT!", [x, float(k)]), level(k), closure,
+                      f"{name}: levels {k}-{LEVEL_COUNT - 1}")
+    return closure
+
+
+# The correction group's pre-filtered terms are instances of one group of the chain (its
+# many lookups built once)
+CHAIN_INPUTS = (("Level", "FLOAT"), ("Direction", "VECTOR"), ("Colour", "VECTOR"))
+
+
+def build_chain_group(data: dict, name: str) -> bpy.types.ShaderNodeTree:
+    """prefiltered(Level, Direction, Colour) as Emission closures behind Mix Shader nodes,
+    a group of its own (tagged as the correction group, so that set_bake finds its
+    lookups)."""
+    group = _tree(name, CORRECTION_GROUP)
+    group.description = ("The pre-filtered levels toward a direction at a fractional level, "
+                         "times a colour, as Emission closures (Cook-Torrance Lab)")
+    for label, kind in CHAIN_INPUTS:
+        group.interface.new_socket(label, in_out='INPUT', socket_type=SOCKET_TYPES[kind])
+    group.interface.new_socket("Emission", in_out='OUTPUT', socket_type=SOCKET_TYPES["SHADER"])
+    b = _Builder(group, data, {})
+    b.group_in.location = (-600, 0)
+    b.current_frame = "chain"
+    b.frame_labels["chain"] = ("sum_k max(0, 1 - |Level - k|) L_k(Direction) Colour: a chain "
+                               "of Mix Shader nodes over the levels (two are read)")
+
+    def emit(colour):
+        node = b.new("ShaderNodeEmission")
+        b.link(colour, node.inputs["Color"])
+        node.inputs["Strength"].default_value = 1.0
+        return node.outputs["Emission"]
+
+    def mix(fac, first, second, label):
+        node = b.new("ShaderNodeMixShader")
+        node.label = label
+        b.link(fac, node.inputs["Fac"])
+        b.link(first, node.inputs[1])
+        b.link(second, node.inputs[2])
+        return node.outputs["Shader"]
+    sockets = [b.socket("in." + label) for label, _ in CHAIN_INPUTS]
+    out = group.nodes.new("NodeGroupOutput")
+    out.location = (2800, 0)
+    group.links.new(_chain(b, *sockets, "prefiltered", emit, mix), out.inputs["Emission"])
+    return group
+
+
+def _scene_transport(b: _Builder, spec: dict, view_on: list, lab, correction_group):
+    """The Emission output with the scene transport (the description's [scene]), and the
+    residual albedo. Where Light Transport Scene is 1 and the View is one of SCENE_VIEWS
+    (full), the model as closures that Cycles path traces plus the correction emission,
+    else ``lab`` (the lab's emission). A Mix Shader of factor exactly 0 or 1 selects, so
+    Cycles skips the other side with every node that only it uses (and, the switches being
+    constants in a material, folds it away).
 
     The closures, as the OSL shader's scene_closures():
     - a Metallic BSDF, Fresnel F82 with a white Edge Tint: Cycles' F82-tint Fresnel is
@@ -683,15 +851,22 @@ def _scene_transport(b: _Builder, spec: dict, view_on: list, lab):
       (1 - tint), so 0 here: Schlick's F on Base Color = specColor. GGX D and the
       height-correlated Smith G, single scattering; Multiscatter GGX where ``multi_ggx`` is 1
       (Energy Compensated: Cycles' albedo scaling with Kulla and Conty's Fresnel term, the
-      model's k_ms for its own tables: an approximation, exact only up to Cycles' E table).
+      model's k_ms for Smith's tables, up to Cycles' own E table).
       The node squares its Roughness, so Roughness = sqrt(alpha) = max(pr, sqrt(0.002)).
     - plus a Diffuse BSDF of Roughness 0: Lambert's diffColor / pi.
     Both on the shading normal n.
 
-    This is the model exactly for G = smith_ggx_correlated, Lambert's diffuse and no energy
-    compensation. For Cook-Torrance's and Unity's G, Disney's diffuse (SVM has no Burley
-    closure) and the compensated lobe the closures approximate the model; the node group has
-    no correction emission (the OSL shader adds one)."""
+    The correction (``correction``, an emission, signed): the group's own lab estimate of
+    integral (f_model - f_closure) L (n.l) for the lights and the world, f_closure the
+    closures' model (Smith's G, Lambert, and with energy compensated Smith's k_ms): term by
+    term for each light (exact for the node group's unshadowed lights at their centres), the
+    split-sum for the world. It sits behind a Mix Shader of factor ``correct``, 0 where the
+    switches are the closures' own (Smith's G and Lambert, either energy), where the closures
+    alone are the model. Its terms gated() and prefiltered() become closures as in the lab's
+    emission (``_closures``), so Cycles skips a light's term where n.l <= 0 and reads two
+    pre-filtered levels.
+
+    The residual (``residual``), a colour: 0 but where the scene transport is on."""
     frame = b.current_frame = "scene"
     b.frame_labels[frame] = spec["label"]
     b.mode = "colour"
@@ -714,8 +889,16 @@ def _scene_transport(b: _Builder, spec: dict, view_on: list, lab):
         node = b.new("ShaderNodeMixShader")
         node.label = label
         b.link(fac, node.inputs["Fac"])
-        b.link(first, node.inputs[1])
+        if first is not None:
+            b.link(first, node.inputs[1])
         b.link(second, node.inputs[2])
+        return node.outputs["Shader"]
+
+    def add(first, second, label):
+        node = b.new("ShaderNodeAddShader")
+        node.label = label
+        b.link(first, node.inputs[0])
+        b.link(second, node.inputs[1])
         return node.outputs["Shader"]
 
     on = value(spec["on"])
@@ -737,11 +920,186 @@ def _scene_transport(b: _Builder, spec: dict, view_on: list, lab):
     b.link(value(spec["diffuse"]["color"]), diffuse.inputs["Color"])
     diffuse.inputs["Roughness"].default_value = 0.0
     b.link(value(spec["diffuse"]["normal"]), diffuse.inputs["Normal"])
-    add = b.new("ShaderNodeAddShader")
-    add.label = "scene closures"
-    b.link(spec_closure, add.inputs[0])
-    b.link(diffuse.outputs["BSDF"], add.inputs[1])
-    return mix(scene_on, lab, add.outputs["Shader"], "lab emission or scene closures")
+    closures = add(spec_closure, diffuse.outputs["BSDF"], "scene closures")
+
+    # the correction: the lights' terms (gated closures, in emission mode) here, the world's
+    # in the correction group, fed the quantities it uses
+    plan = b.lights
+    correct = b.value(plan.scene["correct"])
+    correct.node.label = "correct (not the closures' own switches)"
+    group = b.new("ShaderNodeGroup")
+    group.node_tree = correction_group
+    group.label = "Correction (world) and residual albedo"
+    group.width = 220
+    for label, _kind_, source in plan.correction.inputs:
+        b.link(b.value(source), group.inputs[label])
+        b.current_frame = frame
+    b.mode = "emission"
+    rest = b.value(plan.scene["correction_lights"])
+    lights = _closures(b, {"correction_lights": plan.scene["correction_lights"]}, None, rest,
+                       frame)
+    b.mode = "colour"
+    correction = add(lights, group.outputs[CORRECTION_OUTPUTS["correction_world"][0]],
+                     "correction: the lights + the world")
+    scene = add(closures, mix(correct, None, correction, "correction (0: the closures are "
+                                                         "the model)"),
+                "scene closures + correction")
+    residual = b.call("vec.SCALE", [group.outputs[CORRECTION_OUTPUTS["residual"][0]],
+                                    scene_on])
+    residual.node.label = "residual albedo (scene transport)"
+    return mix(scene_on, lab, scene, "lab emission or scene closures"), residual
+
+
+# --- The correction's and the residual albedo's tables (integrated here, once per cache) ----
+#
+# On the DFG table's axes (row j: pr = j/(N - 1), column i: n.v = i/(N - 1), at least
+# ibl_bake.DFG_MIN_NDOTV), for each G the difference of its specular lobe from Smith's,
+# dG = G - G_Smith, split by sign, each part's terms as the DFG table's: for the part P,
+#   A_P = integral of dG_P D (1 - Fc) / (4 (n.l)(n.v)) (n.l) dl, B_P the same with Fc,
+# so that integral of (f_G - f_Smith)_P (n.l) dl = specColor A_P + B_P (D and F >= 0), and
+# the part's lobe (F = 1): c_P, the angle of its centroid from n toward the mirror side
+# (in the plane of n and v), and x_P, the pre-filtered level whose GGX kernel (ibl_bake
+# ggx_kernel) has the same mean cosine to its axis as the part has to its centroid. The
+# split-sum of each part (its own direction and level) is what the correction's world term
+# reads: the difference of two lobes changes sign (Cook-Torrance's G exceeds Smith's at
+# grazing light, is below it at the specular peak of a grazing view), so one pre-filtered
+# read of the signed difference would weigh light from the wrong directions.
+#   residual_<G>: A_+ + A_-, B_+ + B_-, and the cosine-weighted mean of |Disney factor - 1|
+#   positive_<G>: A_+, B_+, c_+
+#   lobes_<G>:    x_+, c_-, x_-
+# (Smith's own: zeros, but for the Disney column.) And the same for Disney's diffuse minus
+# Lambert's (whatever the G), its factor's difference from 1, d = (1 + (fd90 - 1)(1 - n.l)^5)
+# (1 + (fd90 - 1)(1 - n.v)^5) - 1, split by sign: M_P the cosine-weighted mean of d_P (so
+# that integral of (f_Disney - f_Lambert)_P (n.l) dl = diffColor M_P), its centroid's angle
+# and level as above:
+#   disney_positive: M_+, c_+, x_+
+#   disney_negative: M_-, c_-, x_-
+
+CORRECTION_VERSION = 1
+CORRECTION_SAMPLES = (128, 64)          # GGX half vectors per n.v (ibl_bake.ggx_half_vectors)
+CORRECTION_DIFFUSE_SAMPLES = (128, 64)  # cosine-distributed l: s by phi in [0, pi]
+CORRECTION_TABLE_KINDS = ("residual", "positive", "lobes")
+DISNEY_TABLES = ("disney_positive", "disney_negative")
+CORRECTION_TABLES = tuple(f"{kind}_{g}" for kind in CORRECTION_TABLE_KINDS
+                          for g in G_MODELS) + DISNEY_TABLES
+
+
+def kernel_mean_cosines() -> "np.ndarray":
+    """The mean cosine to its axis of each pre-filtered level's kernel (level 0 is the HDRI
+    itself: 1), K(mu) = D(h) mu over mu = r.l in [0, 1] (ibl_bake.ggx_kernel), by quadrature
+    in q = (1 - mu)/2, denser toward the peak."""
+    import numpy as np
+    from ..core.ibl_bake import LEVEL_ROUGHNESS, ggx_kernel
+    from ..core.model import MIN_ALPHA
+    s = (np.arange(20000) + 0.5) / 20000
+    q, dq = 0.5 * s ** 4, 2.0 * s ** 3 / 20000
+    out = [1.0]
+    for pr in LEVEL_ROUGHNESS[1:]:
+        k = ggx_kernel(max(pr * pr, MIN_ALPHA))(q) * dq
+        out.append(float(np.sum(k * (1 - 2 * q)) / np.sum(k)))
+    return np.array(out)
+
+
+def correction_tables(g_model: str, size: int | None = None) -> dict:
+    """The tables above for one G: {kind: (size, size, 3) float32}."""
+    import numpy as np
+    from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis, ggx_half_vectors
+    from ..core.model import MIN_ALPHA
+    size = size or DFG_SIZE
+    x = dfg_axis(size)
+    nv = np.maximum(x, DFG_MIN_NDOTV)
+    tables = {kind: np.zeros((size, size, 3)) for kind in CORRECTION_TABLE_KINDS}
+    rbar = kernel_mean_cosines()
+    levels = np.arange(len(rbar), dtype=np.float64)
+
+    def smith(nl, nv_, a):
+        a2 = a * a
+        return 2.0 * nl * nv_ / np.maximum(nl * np.sqrt(nv_ * nv_ * (1 - a2) + a2)
+                                           + nv_ * np.sqrt(nl * nl * (1 - a2) + a2), 1e-30)
+    disney = disney_tables(size)
+    tables["residual"][..., 2] = disney["disney_positive"][..., 0] + \
+        disney["disney_negative"][..., 0]
+    for j, pr in enumerate(x):
+        if g_model == "smith_ggx_correlated":
+            continue
+        a = max(pr * pr, MIN_ALPHA)
+        q = ggx_half_vectors(nv, a, *CORRECTION_SAMPLES)
+        nh, sh, vh, nl, sv = (q[k] for k in ("nh", "sh", "vh", "nl", "sv"))
+        nv3 = nv[:, None, None]
+        if g_model == "unity_smith_joint":
+            g = 2.0 * nl * nv3 / (nl * (nv3 * (1 - a) + a) + nv3 * (nl * (1 - a) + a) + 1e-5)
+        else:
+            g = np.minimum(1.0, 2.0 * nh * np.minimum(nv3, nl) / np.maximum(vh, 1e-12))
+        dg = g - smith(nl, nv3, a)
+        fc = (1.0 - vh) ** 5
+        # l in the plane of n and v: toward the mirror side, along n (ibl_bake's centroid)
+        l_x = -(2.0 * vh * sh * np.cos(q["phi"]) - sv)
+        parts = {}
+        for sign, part in ((1, "+"), (-1, "-")):
+            w = np.maximum(sign * dg, 0.0) * vh / (nh * nv3) * q["weight"]
+            total = np.sum(w, axis=(1, 2))
+            cx, cz = np.sum(w * l_x, axis=(1, 2)), np.sum(w * nl, axis=(1, 2))
+            parts[part] = (np.sum(w * (1.0 - fc), axis=(1, 2)), np.sum(w * fc, axis=(1, 2)),
+                           *_lobe(total, cx, cz, rbar))
+        (a_p, b_p, c_p, x_p), (a_m, b_m, c_m, x_m) = parts["+"], parts["-"]
+        tables["residual"][j, :, 0], tables["residual"][j, :, 1] = a_p + a_m, b_p + b_m
+        tables["positive"][j] = np.stack([a_p, b_p, c_p], axis=-1)
+        tables["lobes"][j] = np.stack([x_p, c_m, x_m], axis=-1)
+    return {kind: t.astype(np.float32) for kind, t in tables.items()}
+
+
+def _lobe(total, cx, cz, rbar):
+    """A part's centroid angle from n (toward the mirror side) and its level, from its
+    weight and first moments (x toward the mirror side, z along n)."""
+    import numpy as np
+    mean_cos = np.where(total > 0, np.hypot(cx, cz) / np.maximum(total, 1e-30), 1.0)
+    angle = np.where(total > 0, np.arctan2(cx, np.maximum(cz, 1e-30)), 0.0)
+    return angle, np.interp(-np.minimum(mean_cos, 1.0), -rbar, np.arange(len(rbar), dtype=float))
+
+
+def disney_tables(size: int | None = None) -> dict:
+    """The tables of Disney's diffuse minus Lambert's above: {name: (size, size, 3)}, by a
+    midpoint grid over cosine-distributed l (Malley's method; v in the xz plane, phi in
+    [0, pi] by symmetry), (l.h)^2 = (1 + l.v)/2."""
+    import numpy as np
+    from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis
+    size = size or DFG_SIZE
+    x = dfg_axis(size)
+    nv = np.maximum(x, DFG_MIN_NDOTV)[:, None, None]
+    rbar = kernel_mean_cosines()
+    ns, nphi = CORRECTION_DIFFUSE_SAMPLES
+    s = ((np.arange(ns) + 0.5) / ns)[None, :, None]
+    phi = ((np.arange(nphi) + 0.5) / nphi * np.pi)[None, None, :]
+    lx, lz = np.sqrt(s) * np.cos(phi), np.sqrt(1.0 - s)
+    lv = lx * np.sqrt(1.0 - nv * nv) + lz * nv           # v = (sin, 0, n.v)
+    tables = {name: np.zeros((size, size, 3)) for name in DISNEY_TABLES}
+    for j, pr in enumerate(x):
+        fd90_m1 = pr * (1.0 + lv) - 0.5
+        d = (1 + fd90_m1 * (1 - lz) ** 5) * (1 + fd90_m1 * (1 - nv) ** 5) - 1.0
+        for sign, name in ((1, "disney_positive"), (-1, "disney_negative")):
+            w = np.maximum(sign * d, 0.0) / (ns * nphi)
+            total = np.sum(w, axis=(1, 2))
+            cx, cz = np.sum(w * -lx, axis=(1, 2)), np.sum(w * lz, axis=(1, 2))
+            tables[name][j] = np.stack([total, *_lobe(total, cx, cz, rbar)], axis=-1)
+    return {name: t.astype(np.float32) for name, t in tables.items()}
+
+
+def correction_table_folder():
+    """The folder of the tables above (<kind>_<G>.exr for every kind and G), in the cache:
+    they depend on the model alone, integrated once per cache (about 3 s)."""
+    from ..core import cache
+    from ..core.hdri import write_float_exr
+    key = (f"correction-v{CORRECTION_VERSION}-{DFG_SIZE}-{CORRECTION_SAMPLES[0]}x"
+           f"{CORRECTION_SAMPLES[1]}-{CORRECTION_DIFFUSE_SAMPLES[0]}x"
+           f"{CORRECTION_DIFFUSE_SAMPLES[1]}")
+
+    def fill(stage):
+        for g in G_MODELS:
+            for kind, table in correction_tables(g).items():
+                write_float_exr(stage / f"{kind}_{g}.exr", table)
+        for name, table in disney_tables().items():
+            write_float_exr(stage / f"{name}.exr", table)
+    return cache.cached(key, fill)
 
 
 SOURCE_HASH = "ctlab_source_hash"
@@ -752,6 +1110,7 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
     would reset the inputs and links of every material using it), else built."""
     import hashlib
     digest = hashlib.sha256(DESCRIPTION.read_bytes() + repr(GROUP_INPUTS).encode()
+                            + repr(GROUP_OUTPUTS).encode()
                             + Path(__file__).read_bytes()).hexdigest()[:16]
     group = bpy.data.node_groups.get(load_description()["group"]["name"])
     if group is not None and group.get(TAG) and group.get(SOURCE_HASH) == digest:
@@ -762,21 +1121,36 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
 
 
 def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
-    """Point the group's texture nodes at a bake folder's files (addon/ibl_bake.py)."""
+    """Point the group's texture nodes at a bake folder's files (addon/ibl_bake.py), and the
+    scene transport's tables at theirs (``correction_table_folder``, once per cache)."""
     folder = Path(folder)
-    trees = [group] + list({n.node_tree for n in group.nodes          # and the per-light group
-                            if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None
-                            and n.node_tree.get(LIGHT_GROUP)})
-    for node in (node for tree in trees for node in tree.nodes):
+    trees, pending = [], [group]        # and the groups it holds: per-light, correction
+    while pending:
+        tree = pending.pop()
+        if tree not in trees:
+            trees.append(tree)
+            pending += [n.node_tree for n in tree.nodes if n.bl_idname == "ShaderNodeGroup"
+                        and n.node_tree is not None and (n.node_tree.get(LIGHT_GROUP)
+                                                         or n.node_tree.get(CORRECTION_GROUP))]
+    nodes = [node for tree in trees for node in tree.nodes]
+    tables = correction_table_folder() if any(MODEL_TABLE in node for node in nodes) else None
+    for node in nodes:
+        if MODEL_TABLE in node:
+            node.image = _float_image(tables / f"{node[MODEL_TABLE]}.exr")
         if BAKE_FILE not in node:
             continue
         path = folder / f"{node[BAKE_FILE]}.exr"
         if not path.is_file():
             raise UserError(f"the bake folder {folder} has no {path.name}; bake again")
-        image = bpy.data.images.load(str(path), check_existing=True)
-        image.colorspace_settings.name = "Non-Color"
-        image.use_half_precision = False        # EEVEE: keep 32-bit floats on the GPU
+        image = _float_image(path)
         if BAKE_DIM in node:
             node.outputs[0].default_value = float(image.size[0 if node[BAKE_DIM] == "width" else 1])
         else:
             node.image = image
+
+
+def _float_image(path: Path) -> bpy.types.Image:
+    image = bpy.data.images.load(str(path), check_existing=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.use_half_precision = False        # EEVEE: keep 32-bit floats on the GPU
+    return image

@@ -237,7 +237,7 @@ BY_KEY = {i.key: i for i in INPUTS}
 OPTION_VALUES = {i.key: i.values for i in OPTIONS}       # key -> allowed values
 
 # The node group's outputs (the OSL shader's is its closure, BSDF).
-GROUP_OUTPUTS = (("Emission", "SHADER"), ("Value", "RGBA"))
+GROUP_OUTPUTS = (("Emission", "SHADER"), ("Value", "RGBA"), ("Residual Albedo", "RGBA"))
 OSL_OUTPUT = "BSDF"
 # The scene transport's remainder, an OSL output shown as a render pass (an AOV of this name):
 # integral of |f_model - f_closure| (n.l) dl, estimated at camera hits (docs/model.md "Light
@@ -359,12 +359,13 @@ def transport_notes(impl: str, light_transport: str, view: str, units: str, g_mo
             notes.append("Exact for the world's HDRI and the lights (a correction emission); "
                          "light from other objects sees Smith's G without compensation.")
     else:
-        parts = [p for p, on in (("Smith's G", g_model != SCENE_EXACT_G),
-                                 ("Lambert diffuse", diffuse_model != "lambert"),
-                                 ("Cycles' multiscatter GGX", energy != ENERGY_MODES[0])) if on]
-        notes.append("Node group: Metallic BSDF + Diffuse BSDF, exact for Smith's G, Lambert, "
-                     "no compensation" + (f"; here approximated by {', '.join(parts)}."
-                                          if parts else "."))
+        parts = [p for p, on in (("the G", g_model != SCENE_EXACT_G),
+                                 ("Disney diffuse", diffuse_model != "lambert"),
+                                 ("compensation", energy != ENERGY_MODES[0])) if on]
+        notes.append("Node group: Metallic BSDF + Diffuse BSDF" + (
+            f" plus a correction emission for {', '.join(parts)}: exact for the lights, a "
+            "split-sum for the world; light from other objects sees Smith's G and Lambert."
+            if parts else ": exactly this model."))
         notes.append("EEVEE lights these closures approximately (probes, screen tracing).")
     return notes
 
