@@ -166,7 +166,7 @@ CLASSES = {"smooth metal": lambda m, s: m >= 0.5 and s >= 0.5,
 @functools.cache
 def _sources_digest() -> str:
     h = hashlib.sha256()
-    for p in sorted((ROOT / "osl").glob("*.osl")) + sorted((ROOT / "node_groups").glob("*.toml")) \
+    for p in sorted((ROOT / "osl").glob("*.[oh]*")) + sorted((ROOT / "node_groups").glob("*.toml")) \
             + sorted((ROOT / "addon").rglob("*.py")):
         h.update(p.read_bytes())
     return h.hexdigest()[:12]

@@ -11,6 +11,7 @@ from pathlib import Path
 import bpy
 
 from conftest import ROOT
+from addon.core import osl_source
 
 BLENDER_EXT = (Path(bpy.utils.resource_path('LOCAL')) / "scripts" / "addons_core" / "bl_pkg"
                / "cli" / "blender_ext.py")
@@ -33,6 +34,8 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
     import zipfile
     names = zipfile.ZipFile(zips[0]).namelist()
     assert "osl/cook_torrance.osl" in names and "__init__.py" in names
+    # the shader's parts travel with it (the add-on inlines them when it loads the source)
+    assert {f"osl/{p.name}" for p in osl_source.parts()} <= set(names)
     # the manifest's licences travel with the code: the GPL's text and the font's OFL
     assert "LICENSE" in names and "addon/data/font_atlas.LICENSE.txt" in names
     assert "GNU GENERAL PUBLIC LICENSE" in (ROOT / "LICENSE").read_text()[:200]

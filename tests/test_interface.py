@@ -9,11 +9,12 @@ import pytest
 
 from conftest import ROOT
 from addon.blender import model_node, node_group, osl_shader
+from addon.core import osl_source
 from addon.core.model import (GROUP_INPUTS, GROUP_OUTPUTS, INPUTS, OPTION_VALUES, OSL_INPUTS,
                               OSL_OUTPUTS, VIEWS)
 
 pytestmark = pytest.mark.quick
-SHADER = (ROOT / "osl" / "cook_torrance.osl").read_text()
+SHADER = osl_source.source()          # the shader with its parts inlined
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ import pytest
 
 from conftest import ROOT
 from addon.blender import compat
-from addon.core import env_importance, ibl_bake
+from addon.core import env_importance, ibl_bake, osl_source
 
-SHADER = (ROOT / "osl" / "cook_torrance.osl").read_text()
+SHADER = osl_source.source()          # the shader with its parts inlined
 
 
 def _child(code: str, timeout=240) -> subprocess.CompletedProcess:

@@ -1,4 +1,5 @@
-"""The OSL shader (osl/cook_torrance.osl) as a Cycles script node.
+"""The OSL shader (osl/cook_torrance.osl and its parts, inlined by core/osl_source.py) as
+a Cycles script node.
 
 The source is loaded into an internal text datablock: an installed extension's folder may be
 read-only, and external-mode script nodes write the compiled .oso next to the .osl.
@@ -6,7 +7,6 @@ read-only, and external-mode script nodes write the compiled .oso next to the .o
 
 from __future__ import annotations
 
-import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -14,9 +14,8 @@ from pathlib import Path
 import bpy
 
 from ..core.errors import UserError
-from ..core.files import OSL_DIR
+from ..core.osl_source import SHADER_FILE, source
 
-SHADER_FILE = OSL_DIR / "cook_torrance.osl"
 TEXT_NAME = "ctlab_cook_torrance.osl"
 
 
@@ -25,26 +24,6 @@ def ensure_oslquery() -> None:
     the node silently gets no sockets and the material renders black."""
     from .compat import bundled_module
     bundled_module("oslquery")
-
-
-# A local include: #include "name.osl" (or .h), a file beside the includer or in osl/.
-_LOCAL_INCLUDE = re.compile(r'^#include "([\w.-]+)"[ \t]*$', re.M)
-
-
-def source(path: Path = SHADER_FILE, _depth: int = 0) -> str:
-    """A shader's source with its local includes inlined. Cycles compiles an internal script
-    from a temporary copy, beside which no included file would be found; the standard headers
-    (stdcycles.h) are left to the compiler."""
-    path = Path(path)
-    if _depth > 4:
-        raise UserError(f"{path.name}: includes nested too deep")
-
-    def inline(m):
-        for folder in (path.parent, OSL_DIR):
-            if (folder / m[1]).is_file():
-                return source(folder / m[1], _depth + 1)
-        return m[0]
-    return _LOCAL_INCLUDE.sub(inline, path.read_text(encoding="utf-8"))
 
 
 def shader_text(path: Path = SHADER_FILE, name: str = TEXT_NAME) -> bpy.types.Text:

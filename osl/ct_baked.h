@@ -1,0 +1,118 @@
+// A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
+// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// The baked image-based lighting modes: split-sum and Unity (docs/model.md "Baked
+// image-based lighting").
+
+#ifndef CT_BAKED_H
+#define CT_BAKED_H
+
+// Baked image-based lighting (addon/core/ibl_bake.py): levels specular_0..6 pre-filtered at
+// pr = m / 6, irradiance E (a uniform world of radiance 1 gives pi), DFG tables.  Level 0 is
+// the HDRI itself (W texels wide); level k and the irradiance are at most the widths below
+// (ibl_bake.LEVEL_WIDTHS and IRRADIANCE_WIDTH; a test checks them), never wider than W.
+
+#define IBL_LEVELS 7
+#define LEVEL_1_WIDTH 512
+#define LEVEL_2_WIDTH 256
+#define LEVEL_3_WIDTH 128
+#define LEVEL_4_WIDTH 64
+#define LEVEL_5_WIDTH 64
+#define LEVEL_6_WIDTH 64
+#define IRRADIANCE_WIDTH 128
+
+// Pre-filtered level k (0 .. 6) toward r, for an HDRI W texels wide.  Every texture() call
+// names its file with a constant: from Blender 5.2 Cycles loads the textures a shader names
+// while it optimises the shader, and a name that varies while shading reads no image.
+color prefiltered_level(string bake, int k, float W, vector r, float rotation, float strength,
+                        int bottom_up)
+{
+    if (k == 0)
+        return env_radiance(format("%s/specular_0.exr", bake), W, r, rotation, strength,
+                            bottom_up);
+    if (k == 1)
+        return env_radiance(format("%s/specular_1.exr", bake), min(W, LEVEL_1_WIDTH), r,
+                            rotation, strength, bottom_up);
+    if (k == 2)
+        return env_radiance(format("%s/specular_2.exr", bake), min(W, LEVEL_2_WIDTH), r,
+                            rotation, strength, bottom_up);
+    if (k == 3)
+        return env_radiance(format("%s/specular_3.exr", bake), min(W, LEVEL_3_WIDTH), r,
+                            rotation, strength, bottom_up);
+    if (k == 4)
+        return env_radiance(format("%s/specular_4.exr", bake), min(W, LEVEL_4_WIDTH), r,
+                            rotation, strength, bottom_up);
+    if (k == 5)
+        return env_radiance(format("%s/specular_5.exr", bake), min(W, LEVEL_5_WIDTH), r,
+                            rotation, strength, bottom_up);
+    return env_radiance(format("%s/specular_6.exr", bake), min(W, LEVEL_6_WIDTH), r,
+                        rotation, strength, bottom_up);
+}
+
+// Irradiance E toward n.
+color irradiance(string bake, float W, vector n, float rotation, float strength, int bottom_up)
+{
+    return env_radiance(format("%s/irradiance.exr", bake), min(W, IRRADIANCE_WIDTH), n,
+                        rotation, strength, bottom_up);
+}
+
+// The pre-filtered radiance toward r at fractional level x (0 .. 6), blending two levels.
+color prefiltered_radiance(string bake, float W, vector r, float x, float rotation,
+                           float strength, int bottom_up)
+{
+    float lx = clamp(x, 0.0, IBL_LEVELS - 1.0);
+    int i = int(floor(lx));
+    int j = min(i + 1, IBL_LEVELS - 1);
+    color a = prefiltered_level(bake, i, W, r, rotation, strength, bottom_up);
+    color b = prefiltered_level(bake, j, W, r, rotation, strength, bottom_up);
+    return mix(a, b, lx - i);
+}
+
+
+// Split-sum (Karis 2013): integral f_s L (n.l) dl ~ prefiltered(r) (specColor A + B);
+// diffuse: f_d's directional factor times E(n), i.e. diffColor E(n) / pi (x the Disney factor).
+// With `corrected`, the pre-filtered radiance is read toward the lobe's dominant direction,
+// not the mirror direction: for a rough lobe the reflected light comes from closer to n.
+// r' = normalize(mix(n, r, t)) as Lagarde and de Rousiers (2014, "Moving Frostbite to PBR",
+// listing 22), but with t computed for this model's D and G (the lobe's centroid; channel 2 of
+// ms_<G>, core/ibl_bake.py dominant_table) where they fit t = (1 - a)(sqrt(1 - a) + a) to
+// Smith's G.
+void indirect_split_sum(string bake, float W, string g_model, string diffuse_model, vector n,
+                        vector vdir, float NdotV, float pr, float a, int corrected,
+                        color specColor, color diffColor, float rotation, float strength,
+                        int bottom_up, output color spec, output color diff)
+{
+    vector r = reflect(-vdir, n);
+    if (corrected) {
+        color ms = model_table(bake, "ms", g_model, NdotV, pr, bottom_up);
+        r = normalize(mix(n, r, ms[2]));
+    }
+    color dfg = model_table(bake, "dfg", g_model, NdotV, pr, bottom_up);
+    spec = prefiltered_radiance(bake, W, r, pr * (IBL_LEVELS - 1), rotation, strength,
+                                bottom_up) * (specColor * dfg[0] + dfg[1]);
+    color E = irradiance(bake, W, n, rotation, strength, bottom_up);
+    float k_diffuse = (diffuse_model == "lambert") ? 1.0 : dfg[2];
+    diff = diffColor * E / M_PI * k_diffuse;
+}
+
+// Unity's Standard shader (UnityStandardBRDF.cginc, BRDF1_Unity_PBS, and
+// UnityImageBasedLighting.cginc): mip = pr (1.7 - 0.7 pr) * 6, surfaceReduction = 1/(a^2 + 1),
+// grazing = saturate(smoothness + 1 - oneMinusReflectivity), FresnelLerp with (1 - n.v)^5;
+// diffuse = diffColor x irradiance (Unity's SH irradiance is E / pi).
+void indirect_unity(string bake, float W, vector n, vector vdir, float NdotV, float pr, float a,
+                    float metallic, color specColor, color diffColor, float rotation,
+                    float strength, int bottom_up, output color spec, output color diff)
+{
+    vector r = reflect(-vdir, n);
+    float mip = pr * (1.7 - 0.7 * pr) * (IBL_LEVELS - 1);
+    color env = prefiltered_radiance(bake, W, r, mip, rotation, strength, bottom_up);
+    float surface_reduction = 1.0 / (a * a + 1.0);
+    float grazing = clamp((1.0 - pr) + 1.0 - 0.96 * (1.0 - metallic), 0.0, 1.0);
+    spec = surface_reduction * env * mix(specColor, color(grazing), pow5(1.0 - NdotV));
+    color E = irradiance(bake, W, n, rotation, strength, bottom_up);
+    diff = diffColor * E / M_PI;
+}
+
+// ---------------------------------------------------------------------------------------
+
+
+#endif // CT_BAKED_H
