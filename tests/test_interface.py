@@ -9,7 +9,7 @@ import pytest
 
 from conftest import ROOT
 from addon.blender import model_node, node_group, osl_shader
-from addon.core import osl_source
+from addon.core import node_description, osl_source
 from addon.core.model import (GROUP_INPUTS, GROUP_OUTPUTS, INPUTS, OPTION_VALUES, OSL_INPUTS,
                               OSL_OUTPUTS, VIEWS)
 
@@ -112,7 +112,7 @@ def test_a_closure_term_outside_a_sum_is_refused(monkeypatch, view_text):
     description builds (every other test); these do not."""
     from addon.blender import node_group
     from addon.core.errors import UserError
-    data = node_group.load_description()
+    data = node_description.load_description()
     views = dict(data["views"], full=view_text)
     monkeypatch.setattr(node_group, "load_description", lambda *a: dict(data, views=views))
     with pytest.raises(UserError, match="at most once, as a term of a sum"):

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from addon.blender import compat
+from addon.core import node_description
 from addon.core.model import VIEWS
 
 FULL = VIEWS.index("full")
@@ -565,7 +566,7 @@ def test_the_correction_is_zero_for_the_closures_own_switches(tmp_path, soft_sky
     from addon.blender import node_group
     from addon.core import compare
     matrix = _world_matrix(soft_sky, "nodes")
-    group = bpy.data.node_groups[node_group.load_description()["group"]["name"]]
+    group = bpy.data.node_groups[node_description.load_description()["group"]["name"]]
     gate = next(n for n in group.nodes if n.bl_idname == "ShaderNodeMixShader"
                 and n.label.startswith("correction (0"))
     source = _source(gate.inputs[2])

@@ -1,316 +1,44 @@
 """Build the Cook-Torrance node group from its description, node_groups/cook_torrance.toml.
 
-The description is data: frames of named nodes written as nested calls (see the file's header).
-This module parses each expression into Blender shader nodes, wires them, puts each frame's
+The description is data: frames of named nodes written as nested calls (see the file's header),
+read, checked, parsed and planned without Blender by core/node_description.py. This module
+turns each parsed expression into Blender shader nodes, wires them, puts each frame's
 nodes into a frame named after the term, and selects the view with the View input. The group's
 sockets are the model's interface (core.model.GROUP_INPUTS). The baked split-sum files
 (core/ibl_bake.py) are loaded as images by ``set_bake``, with the scene transport's tables
-that this module integrates (``correction_table_folder``). With Light Transport Scene = 1
+(core/correction_tables.py). With Light Transport Scene = 1
 and the full view, the Emission output is the model as Cycles closures instead, plus the
 correction emission (the description's [scene], ``_scene_transport``).
 """
 
 from __future__ import annotations
 
-import re
-import tomllib
 from pathlib import Path
 
 import bpy
 
+from ..core.correction_tables import CORRECTION_TABLES, correction_table_folder
 from ..core.errors import UserError
-from ..core.files import NODE_GROUPS_DIR
-from ..core.ibl_bake import DFG_SIZE, LEVEL_COUNT
-from ..core.model import (G_MODELS, GROUP_INPUTS, GROUP_OUTPUTS, LIGHT_SLOTS, SCENE_VIEWS,
-                          VIEWS)
+from ..core.ibl_bake import LEVEL_COUNT
+from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, SCENE_VIEWS, VIEWS
+from ..core.node_description import (CLOSURE_OPS, CORRECTION_OUTPUTS, DESCRIPTION,
+                                     VECTOR_VALUE_OPS, LightPlan, SubgroupPlan,
+                                     load_description, parse)
 
-DESCRIPTION = NODE_GROUPS_DIR / "cook_torrance.toml"
 TAG = "ctlab_node_group"
+LIGHT_GROUP = "ctlab_light_group"       # tags the per-light group
+CORRECTION_GROUP = "ctlab_correction_group"     # tags the correction group
 BAKE_FILE = "ctlab_bake_file"           # texture nodes: which baked file they read
 BAKE_DIM = "ctlab_bake_dim"             # value nodes: that file's width or height
 MODEL_TABLE = "ctlab_model_table"       # texture nodes: which correction table they read
 # The group's output of the residual albedo (core.model OSL_RESIDUAL), built where the
 # interface (core.model GROUP_OUTPUTS) has it
 RESIDUAL_OUTPUT = "Residual Albedo"
-# What the description's [scene] table must hold (the scene transport)
-SCENE_KEYS = ("label", "on", "multi_ggx", "specular", "diffuse", "correct",
-              "correction_lights", "correction_world", "residual")
 
 
 SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "NodeSocketColor",
                 "VECTOR": "NodeSocketVector", "SHADER": "NodeSocketShader"}
-VECTOR_VALUE_OPS = {"DOT_PRODUCT", "LENGTH", "DISTANCE"}
-# Terms that the Emission output adds as closures which Cycles can skip (the file's header)
-CLOSURE_OPS = ("gated", "prefiltered")
 POLE_MARGIN = 3e-3      # radians: the least distance of a lat-long lookup from a pole
-
-
-def load_description(path: Path = DESCRIPTION) -> dict:
-    with open(path, "rb") as f:
-        data = tomllib.load(f)
-    if list(data["views"]) != list(VIEWS):
-        raise UserError(f"{path}: the views must be, in order: {', '.join(VIEWS)}")
-    if data["lights"]["slots"] != LIGHT_SLOTS:
-        raise UserError(f"{path}: it is written for {data['lights']['slots']} light slots; the "
-                        f"model has {LIGHT_SLOTS}")
-    if not set(SCENE_KEYS) <= set(data.get("scene", {})):
-        raise UserError(f"{path}: its [scene] table needs label, on, multi_ggx, specular.*, "
-                        "diffuse.*, correct, correction_lights, correction_world and "
-                        "residual (the scene transport's closures, its correction and its "
-                        "residual albedo)")
-    if data["group"]["dfg_size"] != DFG_SIZE:
-        raise UserError(f"{path}: its DFG lookups are written for {data['group']['dfg_size']}"
-                        f"-texel tables; ibl_bake makes {DFG_SIZE}")
-    return data
-
-
-# --- Parsing -----------------------------------------------------------------------------
-
-_TOKEN = re.compile(r"\s*(?:(?P<num>-?\d+\.?\d*(?:[eE][-+]?\d+)?)|(?P<name>[A-Za-z_][\w. !]*?)"
-                    r"(?=\s*[(),]|\s*$)|(?P<sym>[(),]))")
-
-
-def parse(text: str):
-    """'KIND.OP(a, b)' -> ('call', 'KIND.OP', [args]); names -> ('ref', name); numbers ->
-    ('num', value). Names may hold spaces (group inputs such as ``in.Sun Direction``)."""
-    tokens = []
-    pos = 0
-    while pos < len(text):
-        m = _TOKEN.match(text, pos)
-        if not m or m.end() == pos:
-            if text[pos:].strip() == "":
-                break
-            raise UserError(f"node description: cannot parse {text!r} at {text[pos:]!r}")
-        pos = m.end()
-        kind = m.lastgroup
-        tokens.append((kind, m.group(kind).strip()))
-
-    def expr(i):
-        kind, value = tokens[i]
-        if kind == "num":
-            return ("num", float(value)), i + 1
-        if kind != "name":
-            raise UserError(f"node description: unexpected {value!r} in {text!r}")
-        if i + 1 < len(tokens) and tokens[i + 1] == ("sym", "("):
-            args, i = [], i + 2
-            while tokens[i] != ("sym", ")"):
-                arg, i = expr(i)
-                args.append(arg)
-                if tokens[i] == ("sym", ","):
-                    i += 1
-            return ("call", value, args), i + 1
-        return ("ref", value), i + 1
-
-    tree, end = expr(0)
-    if end != len(tokens):
-        raise UserError(f"node description: trailing text in {text!r}")
-    return tree
-
-
-# --- The lights: per-light frames and all_lights() (the description's [lights]) -----------
-#
-# The per-light frames are built once, into a group of their own ("<group> Light"), whose
-# inputs are the light's fields and the quantities of the other frames those frames use, and
-# whose outputs are the per-light nodes the rest of the description uses. The main group holds
-# one instance of it for the key Sun and one for each slot (Cycles and EEVEE flatten groups
-# when they compile, so this costs nothing when rendering; building 9 copies of the frames
-# into one tree would take Blender seconds, since adding a node costs time in proportion to
-# the nodes already in the tree).
-
-LIGHT_GROUP = "ctlab_light_group"       # tags the per-light group
-
-
-def _per_light_names(data: dict) -> set:
-    return {name for spec in data["frames"].values() if spec.get("per_light")
-            for name in spec["nodes"]}
-
-
-def _refs(tree, found: set) -> set:
-    if tree[0] == "ref":
-        found.add(tree[1])
-    elif tree[0] == "call":
-        for a in tree[2]:
-            _refs(a, found)
-    return found
-
-
-def _all_lights(tree, per_light: set, slots: int):
-    """``all_lights(x)``, the sum of the per-light node x over the key Sun and every slot, as
-    vec.ADD of the lights' instances (x, x_1, ...)."""
-    if tree[0] != "call":
-        return tree
-    _, op, args = tree
-    if op == "all_lights":
-        if len(args) != 1 or args[0][0] != "ref" or args[0][1] not in per_light:
-            raise UserError("node description: all_lights() takes the name of a per-light node")
-        name = args[0][1]
-        total = ("ref", name)
-        for i in range(1, slots + 1):
-            total = ("call", "vec.ADD", [total, ("ref", f"{name}_{i}")])
-        return total
-    return ("call", op, [_all_lights(a, per_light, slots) for a in args])
-
-
-def _kind(tree, exprs: dict, inputs: dict) -> str:
-    """FLOAT or VECTOR: what an expression gives (colours are vectors here). ``inputs``:
-    group input name -> kind."""
-    kind = tree[0]
-    if kind == "num":
-        return "FLOAT"
-    if kind == "ref":
-        name = tree[1]
-        if name.startswith("in."):
-            return inputs[name[3:]]
-        if name.startswith("geo."):
-            return "VECTOR"
-        return _kind(exprs[name][1], exprs, inputs)
-    _, op, args = tree
-    if op.startswith("math.") or op in ("x", "y", "z", "pick"):
-        return "FLOAT"
-    if op.startswith("vec."):
-        return "FLOAT" if op[4:] in VECTOR_VALUE_OPS else "VECTOR"
-    if op == "gated":
-        return _kind(args[1], exprs, inputs)
-    return "VECTOR"
-
-
-def _input_kinds() -> dict:
-    return {i.group: ("FLOAT" if i.kind in ("FLOAT", "INT") else "VECTOR")
-            for i in GROUP_INPUTS}
-
-
-class LightPlan:
-    """The description split for the per-light group: its inputs (the light's fields, then the
-    other frames' quantities it uses), its node expressions and its outputs (the per-light
-    nodes used elsewhere; a closure term's arguments as ``name.0``, ``name.1``...)."""
-
-    def __init__(self, data: dict):
-        self.slots = data["lights"]["slots"]
-        self.key_sun = {field: parse(text) for field, text in data["lights"]["key"].items()}
-        self.fields = list(self.key_sun)
-        per_light = self.per_light = _per_light_names(data)
-        main, sub, correction = {}, {}, {}
-        for frame, spec in data["frames"].items():
-            for name, text in spec["nodes"].items():
-                tree = _all_lights(parse(text), per_light, self.slots)
-                (sub if spec.get("per_light") else correction if spec.get("correction_group")
-                 else main)[name] = (frame, tree)
-        self.views = {view: _all_lights(parse(text), per_light, self.slots)
-                      for view, text in data["views"].items()}
-        # the scene transport's expressions (the description's [scene])
-        self.scene = {key: _all_lights(parse(data["scene"][key]), per_light, self.slots)
-                      for key in SCENE_EXPRESSIONS}
-        used_outside = set()
-        for tree in [t for _, t in main.values()] + list(self.views.values()) + \
-                list(self.scene.values()):
-            used_outside |= _refs(tree, set())
-        globals_used = []
-        self.exprs = {}                    # the per-light group's nodes
-        for name, (frame, tree) in sub.items():
-            for ref in _refs(tree, set()):
-                if ref.startswith("light."):
-                    if ref[6:] not in self.key_sun:
-                        raise UserError(f"node description: the key Sun has no {ref[6:]!r}")
-                elif ref in main and ref not in globals_used:
-                    globals_used.append(ref)
-            self.exprs[name] = (frame, self._localise(tree, main))
-        kinds = _input_kinds()
-        field_kinds = {f: kinds[f"Light 1 {f}"] for f in self.fields}
-        self.globals = globals_used
-        self.inputs = [(f, field_kinds[f]) for f in self.fields] + \
-            [(g, _kind(main[g][1], main, kinds)) for g in globals_used]
-        self.outputs = []
-        self.closures = {}                 # per-light closure term -> (op, argument count)
-        sub_kinds = dict(self.inputs)
-        for name in sub:
-            if name not in used_outside:
-                continue
-            frame, tree = self.exprs[name]
-            if tree[0] == "call" and tree[1] in CLOSURE_OPS:
-                self.closures[name] = (tree[1], len(tree[2]))
-                for k, arg in enumerate(tree[2]):
-                    self.exprs[f"{name}.{k}"] = (frame, arg)
-                    self.outputs.append((f"{name}.{k}", _kind(arg, self.exprs, sub_kinds)))
-            else:
-                self.outputs.append((name, _kind(tree, self.exprs, sub_kinds)))
-        self.main = main
-        self.correction = SubgroupPlan(
-            correction, {key: self.scene[key] for key in CORRECTION_OUTPUTS}, main, kinds)
-
-    def _localise(self, tree, main):
-        """A per-light expression inside the per-light group: the light's fields and the other
-        frames' quantities become its inputs."""
-        if tree[0] == "ref":
-            name = tree[1]
-            if name.startswith("light."):
-                return ("ref", "in." + name[6:])
-            return ("ref", "in." + name) if name in main else tree
-        if tree[0] == "call":
-            return ("call", tree[1], [self._localise(a, main) for a in tree[2]])
-        return tree
-
-    def main_exprs(self) -> dict:
-        """The main group's nodes: its own, and each per-light output for each light as
-        ("light", suffix, output) (a closure term as its op over such outputs)."""
-        exprs = dict(self.main)
-        for suffix in [""] + [f"_{i}" for i in range(1, self.slots + 1)]:
-            for name, _kind_ in self.outputs:
-                if "." not in name:
-                    exprs[name + suffix] = ("lights", ("light", suffix, name))
-            for name, (op, count) in self.closures.items():
-                exprs[name + suffix] = ("lights", ("call", op, [
-                    ("light", suffix, f"{name}.{k}") for k in range(count)]))
-        return exprs
-
-
-# --- The correction group (the description's frames marked correction_group) ------------
-#
-# The scene transport's correction for the world and its residual albedo are built into a
-# group of their own ("<group> Correction"), like the per-light frames, whose inputs are the
-# main group's quantities they use and whose outputs are the world's correction (a shader:
-# its pre-filtered terms as chains of Mix Shader nodes) and the residual albedo: its many
-# texture lookups would make the main tree slow to build.
-
-CORRECTION_GROUP = "ctlab_correction_group"     # tags the correction group
-# [scene] expressions: the Mix Shader's factor, the lights' terms (main group), the world's
-# terms and the residual (the correction group's outputs)
-SCENE_EXPRESSIONS = ("correct", "correction_lights", "correction_world", "residual")
-CORRECTION_OUTPUTS = {"correction_world": ("Correction", "SHADER"),
-                      "residual": ("Residual Albedo", "RGBA")}
-
-
-class SubgroupPlan:
-    """Frames built into a group of their own, over the main group's quantities: their node
-    expressions with each main node or group input they use as an input of that group
-    (``inputs``: (socket name, kind, the main group's expression that feeds it)), and the
-    roots it outputs (``roots``: key -> expression)."""
-
-    def __init__(self, exprs: dict, roots: dict, main: dict, kinds: dict):
-        self.inputs, seen = [], set()
-
-        def localise(tree):
-            if tree[0] == "ref":
-                name = tree[1]
-                if name in exprs or name.startswith("geo."):
-                    return tree
-                label = name[3:] if name.startswith("in.") else name
-                if name.startswith("in."):
-                    kind = kinds[label]
-                elif name in main:
-                    kind = _kind(main[name][1], main, kinds)
-                else:
-                    raise UserError(f"node description: the correction group cannot use "
-                                    f"{name!r} (a per-light node)")
-                if label not in seen:
-                    seen.add(label)
-                    self.inputs.append((label, kind, tree))
-                return ("ref", "in." + label)
-            if tree[0] == "call":
-                files = 1 if tree[1] in ("env", "table") else 0    # a baked file's name
-                return ("call", tree[1], tree[2][:files] + [localise(a) for a in tree[2][files:]])
-            return tree
-        self.exprs = {name: (frame, localise(tree)) for name, (frame, tree) in exprs.items()}
-        self.roots = {key: localise(tree) for key, tree in roots.items()}
 
 
 # --- Building ----------------------------------------------------------------------------
@@ -974,133 +702,6 @@ def _scene_transport(b: _Builder, spec: dict, view_on: list, lab, correction_gro
 # and level as above:
 #   disney_positive: M_+, c_+, x_+
 #   disney_negative: M_-, c_-, x_-
-
-CORRECTION_VERSION = 1
-CORRECTION_SAMPLES = (128, 64)          # GGX half vectors per n.v (ibl_bake.ggx_half_vectors)
-CORRECTION_DIFFUSE_SAMPLES = (128, 64)  # cosine-distributed l: s by phi in [0, pi]
-CORRECTION_TABLE_KINDS = ("residual", "positive", "lobes")
-DISNEY_TABLES = ("disney_positive", "disney_negative")
-CORRECTION_TABLES = tuple(f"{kind}_{g}" for kind in CORRECTION_TABLE_KINDS
-                          for g in G_MODELS) + DISNEY_TABLES
-
-
-def kernel_mean_cosines() -> "np.ndarray":
-    """The mean cosine to its axis of each pre-filtered level's kernel (level 0 is the HDRI
-    itself: 1), K(mu) = D(h) mu over mu = r.l in [0, 1] (ibl_bake.ggx_kernel), by quadrature
-    in q = (1 - mu)/2, denser toward the peak."""
-    import numpy as np
-    from ..core.ibl_bake import LEVEL_ROUGHNESS, ggx_kernel
-    from ..core.model import MIN_ALPHA
-    s = (np.arange(20000) + 0.5) / 20000
-    q, dq = 0.5 * s ** 4, 2.0 * s ** 3 / 20000
-    out = [1.0]
-    for pr in LEVEL_ROUGHNESS[1:]:
-        k = ggx_kernel(max(pr * pr, MIN_ALPHA))(q) * dq
-        out.append(float(np.sum(k * (1 - 2 * q)) / np.sum(k)))
-    return np.array(out)
-
-
-def correction_tables(g_model: str, size: int | None = None) -> dict:
-    """The tables above for one G: {kind: (size, size, 3) float32}."""
-    import numpy as np
-    from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis, ggx_half_vectors
-    from ..core.model import MIN_ALPHA
-    size = size or DFG_SIZE
-    x = dfg_axis(size)
-    nv = np.maximum(x, DFG_MIN_NDOTV)
-    tables = {kind: np.zeros((size, size, 3)) for kind in CORRECTION_TABLE_KINDS}
-    rbar = kernel_mean_cosines()
-    levels = np.arange(len(rbar), dtype=np.float64)
-
-    def smith(nl, nv_, a):
-        a2 = a * a
-        return 2.0 * nl * nv_ / np.maximum(nl * np.sqrt(nv_ * nv_ * (1 - a2) + a2)
-                                           + nv_ * np.sqrt(nl * nl * (1 - a2) + a2), 1e-30)
-    disney = disney_tables(size)
-    tables["residual"][..., 2] = disney["disney_positive"][..., 0] + \
-        disney["disney_negative"][..., 0]
-    for j, pr in enumerate(x):
-        if g_model == "smith_ggx_correlated":
-            continue
-        a = max(pr * pr, MIN_ALPHA)
-        q = ggx_half_vectors(nv, a, *CORRECTION_SAMPLES)
-        nh, sh, vh, nl, sv = (q[k] for k in ("nh", "sh", "vh", "nl", "sv"))
-        nv3 = nv[:, None, None]
-        if g_model == "unity_smith_joint":
-            g = 2.0 * nl * nv3 / (nl * (nv3 * (1 - a) + a) + nv3 * (nl * (1 - a) + a) + 1e-5)
-        else:
-            g = np.minimum(1.0, 2.0 * nh * np.minimum(nv3, nl) / np.maximum(vh, 1e-12))
-        dg = g - smith(nl, nv3, a)
-        fc = (1.0 - vh) ** 5
-        # l in the plane of n and v: toward the mirror side, along n (ibl_bake's centroid)
-        l_x = -(2.0 * vh * sh * np.cos(q["phi"]) - sv)
-        parts = {}
-        for sign, part in ((1, "+"), (-1, "-")):
-            w = np.maximum(sign * dg, 0.0) * vh / (nh * nv3) * q["weight"]
-            total = np.sum(w, axis=(1, 2))
-            cx, cz = np.sum(w * l_x, axis=(1, 2)), np.sum(w * nl, axis=(1, 2))
-            parts[part] = (np.sum(w * (1.0 - fc), axis=(1, 2)), np.sum(w * fc, axis=(1, 2)),
-                           *_lobe(total, cx, cz, rbar))
-        (a_p, b_p, c_p, x_p), (a_m, b_m, c_m, x_m) = parts["+"], parts["-"]
-        tables["residual"][j, :, 0], tables["residual"][j, :, 1] = a_p + a_m, b_p + b_m
-        tables["positive"][j] = np.stack([a_p, b_p, c_p], axis=-1)
-        tables["lobes"][j] = np.stack([x_p, c_m, x_m], axis=-1)
-    return {kind: t.astype(np.float32) for kind, t in tables.items()}
-
-
-def _lobe(total, cx, cz, rbar):
-    """A part's centroid angle from n (toward the mirror side) and its level, from its
-    weight and first moments (x toward the mirror side, z along n)."""
-    import numpy as np
-    mean_cos = np.where(total > 0, np.hypot(cx, cz) / np.maximum(total, 1e-30), 1.0)
-    angle = np.where(total > 0, np.arctan2(cx, np.maximum(cz, 1e-30)), 0.0)
-    return angle, np.interp(-np.minimum(mean_cos, 1.0), -rbar, np.arange(len(rbar), dtype=float))
-
-
-def disney_tables(size: int | None = None) -> dict:
-    """The tables of Disney's diffuse minus Lambert's above: {name: (size, size, 3)}, by a
-    midpoint grid over cosine-distributed l (Malley's method; v in the xz plane, phi in
-    [0, pi] by symmetry), (l.h)^2 = (1 + l.v)/2."""
-    import numpy as np
-    from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis
-    size = size or DFG_SIZE
-    x = dfg_axis(size)
-    nv = np.maximum(x, DFG_MIN_NDOTV)[:, None, None]
-    rbar = kernel_mean_cosines()
-    ns, nphi = CORRECTION_DIFFUSE_SAMPLES
-    s = ((np.arange(ns) + 0.5) / ns)[None, :, None]
-    phi = ((np.arange(nphi) + 0.5) / nphi * np.pi)[None, None, :]
-    lx, lz = np.sqrt(s) * np.cos(phi), np.sqrt(1.0 - s)
-    lv = lx * np.sqrt(1.0 - nv * nv) + lz * nv           # v = (sin, 0, n.v)
-    tables = {name: np.zeros((size, size, 3)) for name in DISNEY_TABLES}
-    for j, pr in enumerate(x):
-        fd90_m1 = pr * (1.0 + lv) - 0.5
-        d = (1 + fd90_m1 * (1 - lz) ** 5) * (1 + fd90_m1 * (1 - nv) ** 5) - 1.0
-        for sign, name in ((1, "disney_positive"), (-1, "disney_negative")):
-            w = np.maximum(sign * d, 0.0) / (ns * nphi)
-            total = np.sum(w, axis=(1, 2))
-            cx, cz = np.sum(w * -lx, axis=(1, 2)), np.sum(w * lz, axis=(1, 2))
-            tables[name][j] = np.stack([total, *_lobe(total, cx, cz, rbar)], axis=-1)
-    return {name: t.astype(np.float32) for name, t in tables.items()}
-
-
-def correction_table_folder():
-    """The folder of the tables above (<kind>_<G>.exr for every kind and G), in the cache:
-    they depend on the model alone, integrated once per cache (about 3 s)."""
-    from ..core import cache
-    from ..core.hdri import write_float_exr
-    key = (f"correction-v{CORRECTION_VERSION}-{DFG_SIZE}-{CORRECTION_SAMPLES[0]}x"
-           f"{CORRECTION_SAMPLES[1]}-{CORRECTION_DIFFUSE_SAMPLES[0]}x"
-           f"{CORRECTION_DIFFUSE_SAMPLES[1]}")
-
-    def fill(stage):
-        for g in G_MODELS:
-            for kind, table in correction_tables(g).items():
-                write_float_exr(stage / f"{kind}_{g}.exr", table)
-        for name, table in disney_tables().items():
-            write_float_exr(stage / f"{name}.exr", table)
-    return cache.cached(key, fill)
-
 
 SOURCE_HASH = "ctlab_source_hash"
 

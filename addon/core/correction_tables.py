@@ -1,0 +1,131 @@
+"""The tables of the node group's scene-transport correction: integrals of the model alone
+(its G and diffuse against the closures Cycles offers), which the correction's lookups read.
+Pure numpy; integrated once per cache (about 3 s) and written as EXR files there."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .ibl_bake import DFG_SIZE
+from .model import G_MODELS
+
+CORRECTION_VERSION = 1
+CORRECTION_SAMPLES = (128, 64)          # GGX half vectors per n.v (ibl_bake.ggx_half_vectors)
+CORRECTION_DIFFUSE_SAMPLES = (128, 64)  # cosine-distributed l: s by phi in [0, pi]
+CORRECTION_TABLE_KINDS = ("residual", "positive", "lobes")
+DISNEY_TABLES = ("disney_positive", "disney_negative")
+CORRECTION_TABLES = tuple(f"{kind}_{g}" for kind in CORRECTION_TABLE_KINDS
+                          for g in G_MODELS) + DISNEY_TABLES
+
+
+def kernel_mean_cosines() -> "np.ndarray":
+    """The mean cosine to its axis of each pre-filtered level's kernel (level 0 is the HDRI
+    itself: 1), K(mu) = D(h) mu over mu = r.l in [0, 1] (ibl_bake.ggx_kernel), by quadrature
+    in q = (1 - mu)/2, denser toward the peak."""
+    from ..core.ibl_bake import LEVEL_ROUGHNESS, ggx_kernel
+    from ..core.model import MIN_ALPHA
+    s = (np.arange(20000) + 0.5) / 20000
+    q, dq = 0.5 * s ** 4, 2.0 * s ** 3 / 20000
+    out = [1.0]
+    for pr in LEVEL_ROUGHNESS[1:]:
+        k = ggx_kernel(max(pr * pr, MIN_ALPHA))(q) * dq
+        out.append(float(np.sum(k * (1 - 2 * q)) / np.sum(k)))
+    return np.array(out)
+
+
+def correction_tables(g_model: str, size: int | None = None) -> dict:
+    """The tables above for one G: {kind: (size, size, 3) float32}."""
+    from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis, ggx_half_vectors
+    from ..core.model import MIN_ALPHA
+    size = size or DFG_SIZE
+    x = dfg_axis(size)
+    nv = np.maximum(x, DFG_MIN_NDOTV)
+    tables = {kind: np.zeros((size, size, 3)) for kind in CORRECTION_TABLE_KINDS}
+    rbar = kernel_mean_cosines()
+
+    def smith(nl, nv_, a):
+        a2 = a * a
+        return 2.0 * nl * nv_ / np.maximum(nl * np.sqrt(nv_ * nv_ * (1 - a2) + a2)
+                                           + nv_ * np.sqrt(nl * nl * (1 - a2) + a2), 1e-30)
+    disney = disney_tables(size)
+    tables["residual"][..., 2] = disney["disney_positive"][..., 0] + \
+        disney["disney_negative"][..., 0]
+    for j, pr in enumerate(x):
+        if g_model == "smith_ggx_correlated":
+            continue
+        a = max(pr * pr, MIN_ALPHA)
+        q = ggx_half_vectors(nv, a, *CORRECTION_SAMPLES)
+        nh, sh, vh, nl, sv = (q[k] for k in ("nh", "sh", "vh", "nl", "sv"))
+        nv3 = nv[:, None, None]
+        if g_model == "unity_smith_joint":
+            g = 2.0 * nl * nv3 / (nl * (nv3 * (1 - a) + a) + nv3 * (nl * (1 - a) + a) + 1e-5)
+        else:
+            g = np.minimum(1.0, 2.0 * nh * np.minimum(nv3, nl) / np.maximum(vh, 1e-12))
+        dg = g - smith(nl, nv3, a)
+        fc = (1.0 - vh) ** 5
+        # l in the plane of n and v: toward the mirror side, along n (ibl_bake's centroid)
+        l_x = -(2.0 * vh * sh * np.cos(q["phi"]) - sv)
+        parts = {}
+        for sign, part in ((1, "+"), (-1, "-")):
+            w = np.maximum(sign * dg, 0.0) * vh / (nh * nv3) * q["weight"]
+            total = np.sum(w, axis=(1, 2))
+            cx, cz = np.sum(w * l_x, axis=(1, 2)), np.sum(w * nl, axis=(1, 2))
+            parts[part] = (np.sum(w * (1.0 - fc), axis=(1, 2)), np.sum(w * fc, axis=(1, 2)),
+                           *_lobe(total, cx, cz, rbar))
+        (a_p, b_p, c_p, x_p), (a_m, b_m, c_m, x_m) = parts["+"], parts["-"]
+        tables["residual"][j, :, 0], tables["residual"][j, :, 1] = a_p + a_m, b_p + b_m
+        tables["positive"][j] = np.stack([a_p, b_p, c_p], axis=-1)
+        tables["lobes"][j] = np.stack([x_p, c_m, x_m], axis=-1)
+    return {kind: t.astype(np.float32) for kind, t in tables.items()}
+
+
+def _lobe(total, cx, cz, rbar):
+    """A part's centroid angle from n (toward the mirror side) and its level, from its
+    weight and first moments (x toward the mirror side, z along n)."""
+    mean_cos = np.where(total > 0, np.hypot(cx, cz) / np.maximum(total, 1e-30), 1.0)
+    angle = np.where(total > 0, np.arctan2(cx, np.maximum(cz, 1e-30)), 0.0)
+    return angle, np.interp(-np.minimum(mean_cos, 1.0), -rbar, np.arange(len(rbar), dtype=float))
+
+
+def disney_tables(size: int | None = None) -> dict:
+    """The tables of Disney's diffuse minus Lambert's above: {name: (size, size, 3)}, by a
+    midpoint grid over cosine-distributed l (Malley's method; v in the xz plane, phi in
+    [0, pi] by symmetry), (l.h)^2 = (1 + l.v)/2."""
+    from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis
+    size = size or DFG_SIZE
+    x = dfg_axis(size)
+    nv = np.maximum(x, DFG_MIN_NDOTV)[:, None, None]
+    rbar = kernel_mean_cosines()
+    ns, nphi = CORRECTION_DIFFUSE_SAMPLES
+    s = ((np.arange(ns) + 0.5) / ns)[None, :, None]
+    phi = ((np.arange(nphi) + 0.5) / nphi * np.pi)[None, None, :]
+    lx, lz = np.sqrt(s) * np.cos(phi), np.sqrt(1.0 - s)
+    lv = lx * np.sqrt(1.0 - nv * nv) + lz * nv           # v = (sin, 0, n.v)
+    tables = {name: np.zeros((size, size, 3)) for name in DISNEY_TABLES}
+    for j, pr in enumerate(x):
+        fd90_m1 = pr * (1.0 + lv) - 0.5
+        d = (1 + fd90_m1 * (1 - lz) ** 5) * (1 + fd90_m1 * (1 - nv) ** 5) - 1.0
+        for sign, name in ((1, "disney_positive"), (-1, "disney_negative")):
+            w = np.maximum(sign * d, 0.0) / (ns * nphi)
+            total = np.sum(w, axis=(1, 2))
+            cx, cz = np.sum(w * -lx, axis=(1, 2)), np.sum(w * lz, axis=(1, 2))
+            tables[name][j] = np.stack([total, *_lobe(total, cx, cz, rbar)], axis=-1)
+    return {name: t.astype(np.float32) for name, t in tables.items()}
+
+
+def correction_table_folder():
+    """The folder of the tables above (<kind>_<G>.exr for every kind and G), in the cache:
+    they depend on the model alone, integrated once per cache (about 3 s)."""
+    from ..core import cache
+    from ..core.hdri import write_float_exr
+    key = (f"correction-v{CORRECTION_VERSION}-{DFG_SIZE}-{CORRECTION_SAMPLES[0]}x"
+           f"{CORRECTION_SAMPLES[1]}-{CORRECTION_DIFFUSE_SAMPLES[0]}x"
+           f"{CORRECTION_DIFFUSE_SAMPLES[1]}")
+
+    def fill(stage):
+        for g in G_MODELS:
+            for kind, table in correction_tables(g).items():
+                write_float_exr(stage / f"{kind}_{g}.exr", table)
+        for name, table in disney_tables().items():
+            write_float_exr(stage / f"{name}.exr", table)
+    return cache.cached(key, fill)
