@@ -9,7 +9,7 @@ process's wall time is reported beside it.
 
     .venv-bpy<series>/bin/python scripts/bench.py [--quick] [--only SECTION ...]
 
-Writes bench/results.json and bench/results.md (the README's tables). ``--only`` re-runs the
+Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only`` re-runs the
 named sections (render, error, main, bake) and keeps the others from results.json.
 Converged images for the error study are cached in out/bench-cache (keyed by Blender's
 version, the renderer, the scene and the model's sources).

@@ -66,7 +66,7 @@ for s in 4.5 5.0 5.1 5.2; do [ -f "$LOG/$s.row" ] && rows+=("$(cat "$LOG/$s.row"
   printf '%s\n' "${rows[@]}"
   echo
   echo "Logs: out/versions/<series>.log. What differs between the versions, and how the add-on"
-  echo "handles it: addon/compat.py and the README's *Blender versions*."
+  echo "handles it: addon/blender/compat.py and docs/testing.md, *Blender versions*."
 } > "$ROOT/docs/versions.md.tmp" && mv "$ROOT/docs/versions.md.tmp" "$ROOT/docs/versions.md"
 cat "$ROOT/docs/versions.md"
 grep -q FAIL "$ROOT/docs/versions.md" && exit 1 || exit 0

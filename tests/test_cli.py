@@ -78,7 +78,7 @@ def test_parity_renders_metals_against_principled_ggx_for_two_hdris(tmp_path):
     within 1.1% (bpy 4.5 and 5.1, seeds 0 and 1, both HDRIs: 8 renders of each sphere), while
     a wrong mapping, unit, G or Fresnel moves them by far more. (At 16 spp the studio's
     smoothness-0.5 sphere reached -2.9% on 4.5 and +3.0% on 5.1.) The per-sphere CIEDE2000
-    bound is met at the default 256 spp (README)."""
+    bound is met at the default 256 spp (docs/fidelity.md)."""
     out = tmp_path / "p"
     p = run("matrix", "--parity", "--out", out, "--grid", "3x1", "--size", "72",
             "--samples", "64", "--parity-hdris", "forest,studio")

@@ -1,5 +1,7 @@
 """The reference IBL integrator: white-furnace values, convergence, and the HDRI mapping."""
 
+import math
+
 import numpy as np
 
 from conftest import render, sphere_pixels
@@ -89,7 +91,7 @@ def test_mirror_reflection_matches_principled_under_rotated_hdri(tmp_path):
     """A white smoothness-1 metal is a mirror in both models: the OSL lookup of the HDRI
     (mapping and Mapping-node rotation) must agree with Cycles' Environment Texture."""
     kw = dict(grid=(2, 2), size=96, samples=32, albedo=(1.0, 1.0, 1.0), sun_strength=0.0,
-              hdri_rotation=75.0)
+              hdri_rotation=math.radians(75.0))
     ours, scene = render(tmp_path / "osl", shader="osl", **kw)
     theirs, _ = render(tmp_path / "pbr", shader="principled", principled_distribution="GGX", **kw)
     cell = _cell(scene, 0, 1)

@@ -117,3 +117,49 @@ def test_a_closure_term_outside_a_sum_is_refused(monkeypatch, view_text):
     monkeypatch.setattr(node_group, "load_description", lambda *a: dict(data, views=views))
     with pytest.raises(UserError, match="at most once, as a term of a sum"):
         node_group.build_group("ctlab test group")
+
+
+def _choices(parser, command: str, dest: str):
+    sub = next(a for a in parser._actions if a.dest == "command").choices[command]
+    return tuple(next(a for a in sub._actions if a.dest == dest).choices or ())
+
+
+def test_the_cli_and_the_ui_take_their_vocabulary_from_the_model():
+    """The implementations, the reference and every switch's values are core/model.py's:
+    the command line's choices, the material panel's dropdowns, the preferences' and the
+    operators' items are built from it, in its order."""
+    from addon.core import model
+    from addon.jobs import cli
+    from addon.ui import operators, preferences, properties
+    parser = cli.build_parser()
+    assert _choices(parser, "render", "shader") == model.SHADERS == ("osl", "nodes", "principled")
+    assert _choices(parser, "plot", "shader") == model.IMPLEMENTATIONS
+    assert _choices(parser, "scene", "shader") == model.IMPLEMENTATIONS
+    for key, dest in (("g_model", "g_model"), ("diffuse_model", "diffuse_model"),
+                      ("energy", "energy"), ("light_transport", "light_transport")):
+        assert _choices(parser, "scene", dest) == OPTION_VALUES[key], key
+    for key, items in (("view", properties.VIEW_ITEMS), ("g_model", properties.G_ITEMS),
+                       ("diffuse_model", properties.DIFFUSE_ITEMS),
+                       ("units", properties.UNITS_ITEMS), ("energy", properties.ENERGY_ITEMS),
+                       ("ibl", properties.IBL_ITEMS),
+                       ("light_transport", properties.TRANSPORT_ITEMS)):
+        assert tuple(i[0] for i in items) == OPTION_VALUES[key], key
+        assert all(i[1] == model.label(i[0]) for i in items), key
+    assert {i[0] for i in preferences.IMPLEMENTATION_ITEMS} == set(model.IMPLEMENTATIONS)
+    assert tuple(i[0] for i in operators._SHADER_ITEMS) == model.SHADERS
+
+
+def test_each_implementation_gets_the_indirect_light_and_files_it_can_use():
+    from addon.core.model import BAKED_IBL_MODES, IBL_MODES, files_needed, indirect_light
+    assert indirect_light("osl") == "reference"
+    assert indirect_light("nodes") == "split_sum"
+    assert indirect_light("nodes", "reference") == "split_sum"     # the group has no MC
+    for mode in IBL_MODES:
+        assert indirect_light("osl", mode) == mode
+        assert indirect_light("nodes", mode) == (mode if mode in BAKED_IBL_MODES
+                                                 else "split_sum")
+    assert files_needed("osl", "reference", "lab") == {"tables"}
+    assert files_needed("osl", "split_sum", "lab") == {"bake"}
+    assert files_needed("osl", "unity", "scene") == {"bake", "tables"}   # the correction
+    assert files_needed("nodes", "split_sum", "scene") == {"bake"}
+    assert files_needed("principled", "split_sum", "lab") == set()

@@ -70,7 +70,7 @@ def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spik
                                              env_samples=1))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    description = scene_builder.build_matrix(scene, s)
+    description = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
     node = model_node.find(mat)
     spheres = [o for o in scene.objects if o.type == 'MESH']

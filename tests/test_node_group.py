@@ -209,7 +209,7 @@ def test_drivers_keep_the_key_light_in_sync_with_the_sun(tmp_path):
     scene = bpy.context.scene
     s = MatrixSettings(rows=1, cols=2, width=48, height=48, shader="nodes",
                        model=ModelOptions(view="NdotL", ibl="split_sum"))
-    described = scene_builder.build_matrix(scene, s)
+    described = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     sun = next(o for o in scene.objects if o.type == 'LIGHT')
     new_dir = Vector((0.6, -0.5, 0.3)).normalized()
     sun.rotation_quaternion = new_dir.to_track_quat('Z', 'Y')
@@ -310,7 +310,7 @@ def test_the_value_output_is_the_emission_output(tmp_path):
     s = MatrixSettings(rows=3, cols=3, width=72, height=72, shader="nodes",
                        sun_to_light=(0.6, 0.3, 0.5), sun_strength=3.0,
                        model=ModelOptions(view="full", ibl="split_sum"))
-    described = scene_builder.build_matrix(scene, s)
+    described = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
     node = model_node.find(mat)
     nt = mat.node_tree

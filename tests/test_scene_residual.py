@@ -97,7 +97,7 @@ def residual_pass(tmp_path_factory):
                        model=ModelOptions(light_transport="scene", g_model="cook_torrance",
                                           env_samples=64))
     scene = bpy.context.scene
-    desc = scene_builder.build_matrix(scene, s)
+    desc = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
     node = model_node.find(mat)
     assert any(link.to_node.bl_idname == "ShaderNodeOutputAOV" and

@@ -70,7 +70,7 @@ def matrix(soft_sky):
                        lights=(key_sun(),), mutual_shadows=False,
                        model=ModelOptions(light_transport="scene"))
     scene = bpy.context.scene
-    scene_builder.build_matrix(scene, s)
+    scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
     return s, scene, node
 
@@ -276,7 +276,7 @@ def test_the_residual_albedo_pass_is_the_quadrature(tmp_path, g_model):
                        model=ModelOptions(light_transport="scene", g_model=g_model,
                                           env_samples=256))
     scene = bpy.context.scene
-    desc = scene_builder.build_matrix(scene, s)
+    desc = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
     node = model_node.find(mat)
     nt = mat.node_tree
@@ -319,7 +319,7 @@ def test_the_correction_is_exact_for_the_lights_with_shadow_rays(tmp_path, soft_
                        mutual_shadows=True, metallic=0.5,
                        model=ModelOptions(light_transport="scene"), **extra)
     scene = bpy.context.scene
-    scene_builder.build_matrix(scene, s)
+    scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
     model = dict(g_model="cook_torrance", diffuse_model="disney", energy="compensated",
                  env_samples=4)

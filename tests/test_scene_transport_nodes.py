@@ -476,7 +476,7 @@ def _world_matrix(hdri, shader):
                            light_transport="scene",
                            ibl="reference" if shader == "osl" else "split_sum"))
     scene = bpy.context.scene
-    scene_builder.build_matrix(scene, s)
+    scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     scene.render.dither_intensity = 0.0          # the PNG that compare() reads: no dither noise
     node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
     return s, scene, node
@@ -688,7 +688,7 @@ def test_the_residual_albedo_output_is_the_quadrature(tmp_path, g_model, energy)
                                               diffuse_model="disney", energy=energy,
                                               ibl="split_sum"))
         scene = bpy.context.scene
-        desc = scene_builder.build_matrix(scene, s)
+        desc = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
         mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
         node = model_node.find(mat)
         residual = node.outputs["Residual Albedo"]

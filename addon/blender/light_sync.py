@@ -23,7 +23,7 @@ from .drivers import world_lighting
 from ..core import env_importance, ibl_bake
 from ..core.errors import UserError
 from ..core.hdri import load_hdri, uniform_world
-from ..core.model import BY_KEY
+from ..core.model import files_needed
 
 MATRIX_TAG = "ctlab_matrix"       # the matrix builder manages its own material (scene_builder)
 
@@ -122,13 +122,11 @@ def update_environment(node: bpy.types.Node, scene: bpy.types.Scene,
     cached by content). A bad HDRI raises UserError. Pass one ``env`` to every node of a
     sync pass."""
     env = env or Environment(scene)
-    if model_node.get_option(node, "ibl") == "reference":
-        model_node.set_environment(node, env.hdri, tables=env.tables)
-    else:
-        # the OSL scene transport's correction integrates the HDRI with the importance tables
-        tables = env.tables if model_node.implementation(node) == "osl" and \
-            model_node.get_option(node, "light_transport") == "scene" else None
-        model_node.set_environment(node, env.hdri, tables=tables, bake=env.bake)
+    need = files_needed(model_node.implementation(node), model_node.get_option(node, "ibl"),
+                        model_node.get_option(node, "light_transport"))
+    model_node.set_environment(node, env.hdri,
+                               tables=env.tables if "tables" in need else None,
+                               bake=env.bake if "bake" in need else None)
 
 
 def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=True,
@@ -149,7 +147,7 @@ def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=T
     sun = key_sun(scene)
     model_node.add_drivers(tree, node, sun, scene.world)
     if sun is None:                    # no Sun: no key light
-        node.inputs[BY_KEY["sun_irradiance"].label].default_value = (0.0, 0.0, 0.0, 1.0)
+        model_node.lighting_input(node, "sun_irradiance").default_value = (0.0, 0.0, 0.0, 1.0)
     used, _unused = scene_lights.scene_lights(scene, exclude=sun)
     scene_lights.sync_slots(tree, node, used)
     if environment:

@@ -16,12 +16,10 @@ import bpy
 
 from . import drivers, node_group, osl_shader
 from ..core.errors import UserError
-from ..core.model import (BAKED_IBL_MODES, BY_KEY, LIGHT_FIELDS, LIGHT_SLOTS, LIGHTING,
-                          OPTIONS, OPTION_VALUES, OSL_RESIDUAL, SURFACE, Lighting,
-                          ModelOptions, light_key)
+from ..core.model import (BAKED_IBL_MODES, BY_KEY, IMPLEMENTATIONS, LIGHT_FIELDS, LIGHT_SLOTS,
+                          LIGHTING, OPTION_VALUES, OPTIONS, OSL_RESIDUAL, SURFACE, Lighting,
+                          ModelOptions, indirect_light, light_key)
 
-IMPLEMENTATIONS = ("osl", "nodes")
-IMPLEMENTATION_LABELS = {"osl": "OSL Shader", "nodes": "Node Group"}
 NODE_NAME = "Cook-Torrance"
 SURFACE_KEYS = tuple(i.key for i in SURFACE)
 OPTION_KEYS = tuple(i.key for i in OPTIONS)
@@ -287,8 +285,8 @@ def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bp
             tree.links.new(src.links[0].from_socket, dst)
     for key in OPTION_KEYS:
         value = get_option(old, key)
-        if key == "ibl" and impl == "nodes" and value not in BAKED_IBL_MODES:
-            value = BAKED_IBL_MODES[0]
+        if key == "ibl":
+            value = indirect_light(impl, value)
         set_option(new, key, value)
     for link in list(shader_output(old).links):
         tree.links.new(shader_output(new), link.to_socket)

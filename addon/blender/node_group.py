@@ -722,7 +722,7 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
 
 
 def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
-    """Point the group's texture nodes at a bake folder's files (addon/ibl_bake.py), and the
+    """Point the group's texture nodes at a bake folder's files (core/ibl_bake.py), and the
     scene transport's tables at theirs (``correction_table_folder``, once per cache)."""
     folder = Path(folder)
     trees, pending = [], [group]        # and the groups it holds: per-light, correction

@@ -20,7 +20,7 @@ from . import compat, materials, model_node, scene_lights
 from .paths import resolve_hdri
 from ..core import env_importance, ibl_bake
 from ..core.hdri import load_hdri
-from ..core.model import BAKED_IBL_MODES, Lighting
+from ..core.model import Lighting, files_needed
 from ..core.settings import (CAMERA_DISTANCE, TO_CAMERA, MatrixSettings, cell_center, describe,
                              ortho_scale)
 
@@ -60,7 +60,7 @@ def build_world(s: MatrixSettings, image: bpy.types.Image) -> bpy.types.World:
     coords = nt.nodes.new("ShaderNodeTexCoord")
     mapping = nt.nodes.new("ShaderNodeMapping")
     mapping.vector_type = 'POINT'
-    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(s.hdri_rotation))
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, s.hdri_rotation)
     env = nt.nodes.new("ShaderNodeTexEnvironment")
     env.image = image
     env.interpolation = 'Linear'
@@ -83,17 +83,29 @@ def load_image(path: Path) -> bpy.types.Image:
     return image
 
 
-def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> dict:
-    """Build (or rebuild) the sphere matrix in ``scene``; returns the scene description
-    (core.settings.describe). Validates everything (and bakes the IBL files the model needs,
-    cached) before touching the scene; ``progress(fraction, message)`` follows a bake."""
+def environment_files(s: MatrixSettings, progress=None) -> tuple:
+    """What the model of ``s`` reads besides its HDRI (core.model.files_needed), made or found
+    in the cache: (the importance tables or {}, the bake folder or ""). A bad HDRI is a
+    UserError; ``progress(fraction, message)`` follows a bake."""
     hdri = resolve_hdri(s.hdri)
     load_hdri(hdri)                               # a clear error for a bad HDRI, before any change
     tables, bake = {}, ""
-    if s.shader == "osl" and (s.model.ibl == "reference" or s.model.light_transport == "scene"):
+    need = files_needed(s.shader, s.model.ibl, s.model.light_transport)
+    if "tables" in need:
         tables = env_importance.tables_for(hdri)      # the reference IBL, the scene correction
-    if s.shader != "principled" and s.model.ibl in BAKED_IBL_MODES:
+    if "bake" in need:
         bake = ibl_bake.bake(hdri, progress)
+    return tables, bake
+
+
+def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dict:
+    """Build (or rebuild) the sphere matrix in ``scene`` from the settings and their
+    ``environment_files`` (made beforehand: the builder bakes nothing); returns the scene
+    description (core.settings.describe). Changes nothing in the scene before it has checked
+    the settings' HDRI."""
+    hdri = resolve_hdri(s.hdri)
+    load_hdri(hdri)                               # a clear error for a bad HDRI, before any change
+    tables, bake = files
 
     remove_matrix(scene)
     coll = bpy.data.collections.get(COLLECTION)
@@ -137,7 +149,7 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, progress=None) -> di
     scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
 
     lighting = Lighting(s.to_light(), s.irradiance() if sun else (0.0, 0.0, 0.0), str(hdri),
-                        s.hdri_strength, math.radians(s.hdri_rotation), tables, str(bake))
+                        s.hdri_strength, s.hdri_rotation, tables, str(bake))
     if s.shader == "principled":
         mat = materials.principled_material("Principled Matrix", per_object=True,
                                             distribution=s.principled_distribution)

@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import UserError
-from .model import (DEFAULT_ALBEDO, DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, REC709_LUMINANCE,
-                    UNITS, ggx_alpha, ModelOptions)
+from .model import (DEFAULT_ALBEDO, DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IMPLEMENTATIONS,
+                    REC709_LUMINANCE, UNITS, ModelOptions, ggx_alpha)
 
 SLICE_SIZE = 90                      # 1° steps of θh and θd
 SLICE_PHI_D = 90.0                   # degrees
@@ -52,7 +52,7 @@ SLICE_VIEWS = ("D", "F", "G", "specular_brdf", "diffuse_brdf", "NdotL", "NdotV",
 # --compare: the switch each key changes, and its values
 COMPARE_KEYS = {"g": ("g_model", G_MODELS), "diffuse": ("diffuse_model", DIFFUSE_MODELS),
                 "energy": ("energy", ENERGY_MODES)}
-PLOT_SHADERS = ("osl", "nodes")
+PLOT_SHADERS = IMPLEMENTATIONS            # the model's own code: either implementation
 
 # What each slice shows, for its title, and whether a log scale suits it.
 VIEW_TITLES = {"f_r": ("f_r = f_d + f_s (sr⁻¹)", True), "D": ("D (sr⁻¹)", True),

@@ -12,6 +12,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+# --- Implementations: who carries the model, and the reference it is compared with.
+# osl: the OSL shader (osl/cook_torrance.osl); nodes: the node group
+# (node_groups/cook_torrance.toml); principled: Blender's Principled BSDF, path traced.
+IMPLEMENTATIONS = ("osl", "nodes")
+REFERENCE = "principled"
+SHADERS = IMPLEMENTATIONS + (REFERENCE,)      # what a render of the matrix can use
+IMPLEMENTATION_LABELS = {
+    "osl": ("OSL Shader", "The OSL shader: Cycles on the CPU with Open Shading Language on; "
+                          "also offers the reference (Monte Carlo) indirect light"),
+    "nodes": ("Node Group", "The shader-node group: Cycles (CPU or GPU, SVM or OSL) and EEVEE")}
+# The renders' names in reports and the comparison operators
+SHADER_LABELS = {"osl": ("Cook-Torrance (OSL)", "The OSL shader (Cycles on the CPU)"),
+                 "nodes": ("Cook-Torrance (Node Group)", "The node group (Cycles and EEVEE)"),
+                 "principled": ("Principled BSDF", "Blender's Principled BSDF, the reference")}
+
 # --- Switches (docs/model.md "Switches"); the first value is the default.
 # unity_smith_joint: Unity's approximate height-correlated Smith visibility
 # (SmithJointGGXVisibilityTerm in UnityStandardBRDF.cginc), BRDF1_Unity_PBS's G
@@ -66,6 +81,22 @@ VIEWS = LIGHTING_VIEWS + TERM_VIEWS
 EXACT_VIEWS = TERM_VIEWS
 # Their PNG uses Blender's AgX view transform; the term views use Standard (raw values).
 AGX_VIEWS = LIGHTING_VIEWS
+
+# The switches' and views' names in the UI (a value not listed is its name, title-cased).
+OPTION_LABELS = {"cook_torrance": "Cook-Torrance",
+                 "smith_ggx_correlated": "Smith (height-correlated)",
+                 "unity_smith_joint": "Unity (Smith joint approximation)",
+                 "disney": "Disney", "lambert": "Lambert", "physical": "Physical", "unity": "Unity",
+                 "none": "Single Scattering", "compensated": "Compensated",
+                 "NdotL": "N·L", "NdotV": "N·V", "NdotH": "N·H", "VdotH": "V·H", "D": "D",
+                 "F": "F", "G": "G", "spec_color": "Specular Colour",
+                 "specular_brdf": "Specular BRDF", "diffuse_brdf": "Diffuse BRDF"}
+
+
+def label(value: str) -> str:
+    """A switch's or a view's name in the UI."""
+    return OPTION_LABELS.get(value) or IBL_LABELS.get(value, (None,))[0] or \
+        LIGHT_TRANSPORT_LABELS.get(value, (None,))[0] or value.replace("_", " ").title()
 
 REC709_LUMINANCE = (0.2126, 0.7152, 0.0722)     # Y of linear Rec. 709 RGB
 MIN_ALPHA = 0.002                               # GGX alpha = max(pr^2, MIN_ALPHA)
@@ -321,6 +352,29 @@ def scene_transport_problem(options) -> str | None:
         return ("Unity's units (x pi on direct light) exist in the lab transport only; use "
                 "--units physical with --light-transport scene")
     return None
+
+
+def indirect_light(impl: str, ibl: str | None = None) -> str:
+    """The indirect-light mode ``impl`` renders for a requested one (None: its default). The
+    OSL shader has every mode and defaults to the reference integration; the node group has
+    the baked modes only and takes the split-sum for the reference."""
+    if impl == "nodes" and (ibl is None or ibl not in BAKED_IBL_MODES):
+        return BAKED_IBL_MODES[0]
+    return ibl or IBL_MODES[0]
+
+
+def files_needed(impl: str, ibl: str, light_transport: str) -> frozenset:
+    """What a model node reads besides the HDRI: "tables" (the environment importance
+    tables: the OSL reference integration, and the OSL scene transport's correction of the
+    world) and "bake" (the split-sum files: the baked modes). Principled BSDF needs neither."""
+    if impl not in IMPLEMENTATIONS:
+        return frozenset()
+    need = set()
+    if impl == "osl" and (ibl == "reference" or light_transport == "scene"):
+        need.add("tables")
+    if ibl in BAKED_IBL_MODES:
+        need.add("bake")
+    return frozenset(need)
 
 
 def scene_residual(g_model: str, energy: str) -> bool:

@@ -12,9 +12,8 @@ from dataclasses import dataclass, field
 
 from .errors import UserError
 from .lights import PER_TYPE
-from .model import BAKED_IBL_MODES, DEFAULT_ALBEDO, LIGHT_SLOTS, ModelOptions
+from .model import BAKED_IBL_MODES, DEFAULT_ALBEDO, LIGHT_SLOTS, SHADERS, ModelOptions
 
-SHADERS = ("osl", "nodes", "principled")     # the OSL shader, the node group, the reference
 MAX_GRID = 16
 SIZE_RANGE = (16, 4096)
 MAX_STRENGTH = 1e6          # the node group's inputs' maximum (core.model.LIGHTING)
@@ -65,7 +64,8 @@ class MatrixSettings:
     albedo: tuple = DEFAULT_ALBEDO
     hdri: str = ""                      # empty: Blender's bundled forest.exr
     hdri_strength: float = 1.0
-    hdri_rotation: float = 0.0          # degrees about Z, as the Mapping node
+    hdri_rotation: float = 0.0          # radians about Z, as the Mapping node (degrees only
+                                        # at the boundary: --hdri-rotation, scene.json)
     sun_to_light: tuple = (-0.45, -0.55, 0.70)
     sun_strength: float = 1.0           # irradiance (W/m^2), Blender's Sun strength
     sun_color: tuple = (1.0, 1.0, 1.0)
@@ -126,7 +126,7 @@ class MatrixSettings:
                                 f"{MAX_STRENGTH:g}")
         if not _finite32(self.hdri_rotation):
             raise UserError(f"hdri rotation {self.hdri_rotation} out of range; use a finite "
-                            "number of degrees")
+                            "number of radians")
         radius_px = self.radius * world_to_pixel(self, (0.0, 0.0, 0.0))[1]
         if radius_px < MIN_SPHERE_PX:
             need = math.ceil(MIN_SPHERE_PX * self.width / radius_px)
@@ -179,7 +179,7 @@ def describe(s: MatrixSettings, hdri: str) -> dict:
             "lights": [light_record(light) for light in s.lights],
             "lights_file": s.lights_file,
             "hdri": str(hdri), "hdri_strength": s.hdri_strength,
-            "hdri_rotation_deg": s.hdri_rotation, "shader": s.shader,
+            "hdri_rotation_deg": math.degrees(s.hdri_rotation), "shader": s.shader,
             "principled_distribution": s.principled_distribution,
             "rows": s.rows, "cols": s.cols, "model": s.model.as_dict(), "cells": cells}
 

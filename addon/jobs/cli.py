@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import functools
 import math
 import os
 import re
@@ -29,8 +30,9 @@ from . import pipeline
 from ..blender.renderer import ENGINES
 from ..core.errors import Cancelled, UserError
 from ..core.model import (DEFAULT_ALBEDO, DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IBL_MODES,
-                          LIGHT_TRANSPORTS, MATRIX_ALBEDO, UNITS, VIEWS, ModelOptions)
-from ..core.settings import SHADERS, MatrixSettings
+                          IMPLEMENTATIONS, LIGHT_TRANSPORTS, MATRIX_ALBEDO, SHADERS, UNITS,
+                          VIEWS, ModelOptions, indirect_light)
+from ..core.settings import MatrixSettings
 
 EXIT_BAD_INPUT = 2
 EXIT_CANCELLED = 130
@@ -194,26 +196,40 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
                            choices=a.choices, help=a.help)
 
 
+@functools.cache
+def _flags(command: str) -> dict:
+    """dest -> (its long option, whether it is a flag without a value), of a subcommand's
+    parser: the one table command lines are written from."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions
+               if isinstance(a, argparse._SubParsersAction)).choices[command]
+    return {a.dest: (max(a.option_strings, key=len), a.nargs == 0)
+            for a in sub._actions if a.option_strings and a.dest != "help"}
+
+
 def argv(command: str, *words, **values) -> list:
-    """A command line for ``command`` with scene options given by their settings names
-    (``argv("matrix", "--out", OUT, sun_dir=(x, y, z), samples=64)``). Values are written as
+    """A command line for ``command`` with options given by their destination names, read
+    from the parser itself (``argv("matrix", "--out", OUT, sun_dir=(x, y, z), samples=64)``,
+    ``argv("plot", out=OUT, g_model="cook_torrance")``). Values are written as
     ``--flag=value``, so a negative number or a list starting with "-" cannot be read as an
     option; an unknown name is a KeyError here rather than a parse error in the child."""
     out = [command, *map(str, words)]
+    flags = _flags(command)
     for dest, value in values.items():
-        a = _BY_DEST[dest]
-        if a.flag_only:
+        flag, flag_only = flags[dest]
+        if flag_only:
             if value:
-                out.append(a.flag)
+                out.append(flag)
             continue
         if isinstance(value, (tuple, list)):
             value = ",".join(f"{float(v):.9g}" for v in value)
         elif isinstance(value, float):
             value = f"{value:.9g}"
-        out.append(f"{a.flag}={value}")
+        out.append(f"{flag}={value}")
     return out
 
 
+FLOAT32_MAX = 3.4028234663852886e38
 DEFAULTS = {"grid": "7x7", "size": 512, "samples": 64}
 PARITY_DEFAULTS = {"grid": "5x3", "size": 384, "samples": 256}
 
@@ -225,13 +241,17 @@ def settings_from(args, shader: str, view: str) -> MatrixSettings:
     rows, cols = parse_grid(args.grid)
     if args.samples < 1 or args.samples > 65536:
         raise UserError(f"samples {args.samples} out of range; use 1 to 65536")
-    ibl = args.ibl or ("split_sum" if shader == "nodes" else IBL_MODES[0])
+    ibl = args.ibl or indirect_light(shader)
+    # degrees on the command line, radians inside (the Mapping node's unit)
+    if not (math.isfinite(args.hdri_rotation) and abs(args.hdri_rotation) <= FLOAT32_MAX):
+        raise UserError(f"hdri rotation {args.hdri_rotation} out of range; use a finite "
+                        "number of degrees")
     model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
                          units=args.units, energy=args.energy, ibl=ibl, env_samples=args.env_samples,
                          env_visibility=args.env_visibility, seed=args.seed,
                          light_transport=args.light_transport)
     s = MatrixSettings(rows=rows, cols=cols, hdri=args.hdri, hdri_strength=args.hdri_strength,
-                       hdri_rotation=args.hdri_rotation,
+                       hdri_rotation=math.radians(args.hdri_rotation),
                        sun_to_light=parse_vector(args.sun_dir, 3, "sun direction"),
                        sun_strength=args.sun_strength,
                        albedo=parse_vector(args.albedo, 3, "albedo"), shader=shader,
@@ -430,7 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="|".join(DIFFUSE_MODELS))
     p.add_argument("--units", default=UNITS[0], help="|".join(UNITS))
     p.add_argument("--energy", default=ENERGY_MODES[0], help="|".join(ENERGY_MODES))
-    p.add_argument("--shader", default="osl", choices=("osl", "nodes"),
+    p.add_argument("--shader", default="osl", choices=IMPLEMENTATIONS,
                    help="the implementation that evaluates the model (default osl)")
     p.add_argument("--view", action="append", default=None,
                    help="also slice these term views (comma list, repeatable): "
@@ -451,7 +471,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--light-transport", dest="light_transport", default="scene",
                    choices=LIGHT_TRANSPORTS, help="for the model materials (default scene: "
                                                   "Cycles path traces the model's closures)")
-    s.add_argument("--shader", default=None, choices=("osl", "nodes"),
+    s.add_argument("--shader", default=None, choices=IMPLEMENTATIONS,
                    help="the model's implementation (default: each material's own; osl "
                         "with --convert)")
     s.add_argument("--g", dest="g_model", default=None, choices=G_MODELS,

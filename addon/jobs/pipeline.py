@@ -63,9 +63,10 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
     for out_dir in out_dirs.values():
         refuse_overwrite([hdri], [Path(out_dir) / name for name in renderer.OUTPUT_FILES])
         check_writable(out_dir)
+    files = scene_builder.environment_files(settings, events.bake_progress)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    description = scene_builder.build_matrix(scene, settings, events.bake_progress)
+    description = scene_builder.build_matrix(scene, settings, files)
     node = next(filter(None, (model_node.find(m) for m in bpy.data.materials
                               if m.get(scene_builder.TAG))), None)
     log = None if verbose else os.devnull      # Blender's own per-tile lines

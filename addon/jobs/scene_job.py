@@ -38,7 +38,7 @@ from ..core.compare import ciede2000, heatmap, metrics, read_image, srgb_to_lab,
 from ..core.errors import UserError
 from ..core.files import atomic_path, check_writable, json_text, refuse_overwrite, write_json, \
     write_text
-from ..core.model import (DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, LIGHT_TRANSPORTS,
+from ..core.model import (DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IMPLEMENTATIONS, LIGHT_TRANSPORTS,
                           REC709_LUMINANCE, UNITS)
 from ..core.report import STYLE
 from .pipeline import Events
@@ -79,7 +79,7 @@ class SceneJob:
 
     def check(self) -> None:
         choices = (("--light-transport", self.light_transport, LIGHT_TRANSPORTS),
-                   ("--shader", self.shader, model_node.IMPLEMENTATIONS),
+                   ("--shader", self.shader, IMPLEMENTATIONS),
                    ("--g", self.g_model, G_MODELS),
                    ("--diffuse", self.diffuse_model, DIFFUSE_MODELS),
                    ("--energy", self.energy, ENERGY_MODES),

@@ -16,17 +16,15 @@ from . import preferences
 from .properties import DIFFUSE_ITEMS, ENERGY_ITEMS, G_ITEMS, TRANSPORT_ITEMS, VIEW_ITEMS
 from ..blender import light_sync, model_node
 from ..blender.drivers import world_nodes
-from ..blender.scene_builder import build_matrix
+from ..blender.scene_builder import build_matrix, environment_files
 from ..core.errors import UserError
-from ..core.model import IBL_LABELS, IBL_MODES, MATRIX_ALBEDO, ModelOptions
-from ..core.settings import MAX_GRID, SHADERS, MatrixSettings
+from ..core.model import (IBL_LABELS, IBL_MODES, IMPLEMENTATION_LABELS, MATRIX_ALBEDO,
+                          SHADER_LABELS, SHADERS, ModelOptions, indirect_light)
+from ..core.settings import MAX_GRID, MatrixSettings
 
 _DEFAULTS = MatrixSettings()
 _IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in IBL_MODES)
-_SHADER_LABELS = {"osl": ("Cook-Torrance (OSL)", "The OSL shader (Cycles on the CPU)"),
-                  "nodes": ("Cook-Torrance (Node Group)", "The node group (Cycles and EEVEE)"),
-                  "principled": ("Principled BSDF", "Blender's Principled BSDF, the reference")}
-_SHADER_ITEMS = tuple((s, *_SHADER_LABELS[s]) for s in SHADERS)
+_SHADER_ITEMS = tuple((s, *SHADER_LABELS[s]) for s in SHADERS)
 _IMPL_ITEMS = (("PREFERENCES", "Preferences' Default", "The add-on preferences' implementation"),
                ) + preferences.IMPLEMENTATION_ITEMS
 _SCOPE_ITEMS = (("ACTIVE", "Active Material", "The active object's active material"),
@@ -114,18 +112,19 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
     resolution: IntProperty(name="Resolution", default=512, min=16, max=4096, subtype='PIXEL')
 
     def execute(self, context):
-        ibl = "split_sum" if self.shader == "nodes" and self.ibl == "reference" else self.ibl
+        ibl = indirect_light(self.shader, self.ibl) if self.shader != "principled" else self.ibl
         try:
             settings = MatrixSettings(
                 rows=self.rows, cols=self.cols, spacing=self.spacing, albedo=tuple(self.albedo),
                 hdri=bpy.path.abspath(self.hdri) if self.hdri else _default_hdri(),
                 hdri_strength=self.hdri_strength,
-                hdri_rotation=math.degrees(self.hdri_rotation),
+                hdri_rotation=self.hdri_rotation,
                 sun_to_light=tuple(self.sun_direction), sun_strength=self.sun_strength,
                 shader=self.shader, width=self.resolution, height=self.resolution,
                 model=ModelOptions(view=self.view, ibl=ibl))
             with _progress(context) as progress:
-                build_matrix(context.scene, settings, progress)
+                files = environment_files(settings, progress)
+            build_matrix(context.scene, settings, files)
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
@@ -218,7 +217,7 @@ class CTLAB_OT_new_material(bpy.types.Operator):
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
         _assign(context.object, mat)
-        self.report({'INFO'}, f"New {model_node.IMPLEMENTATION_LABELS[impl]} material "
+        self.report({'INFO'}, f"New {IMPLEMENTATION_LABELS[impl][0]} material "
                               f"{mat.name!r}")
         return {'FINISHED'}
 
@@ -322,7 +321,7 @@ class CTLAB_OT_switch_implementation(bpy.types.Operator):
             context.scene.cycles.shading_system = True
         note = " (reference indirect light became split-sum)" if was_reference and \
             self.target == "nodes" else ""
-        self.report({'INFO'}, f"{mat.name}: now the {model_node.IMPLEMENTATION_LABELS[self.target]}"
+        self.report({'INFO'}, f"{mat.name}: now the {IMPLEMENTATION_LABELS[self.target][0]}"
                               + note)
         return {'FINISHED'}
 
@@ -737,15 +736,12 @@ def plot_command(node, out: Path, compare_g: bool = False) -> tuple:
         values[key] = [clamp01(x) for x in value[:3]] if key == "albedo" else clamp01(value)
     options = {k: model_node.get_option(node, k) for k in ("g_model", "diffuse_model",
                                                             "units", "energy")}
-    argv = ["plot", f"--out={out}", f"--metallic={values['metallic']:.9g}",
-            f"--smoothness={values['smoothness']:.9g}",
-            "--albedo=" + ",".join(f"{x:.9g}" for x in values["albedo"]),
-            f"--g={options['g_model']}", f"--diffuse={options['diffuse_model']}",
-            f"--units={options['units']}", f"--energy={options['energy']}",
-            f"--shader={model_node.implementation(node)}"]
+    from ..jobs.cli import argv as job_argv
     if compare_g:
-        argv.append("--compare=" + ",".join(f"g={g}" for g in G_MODELS
-                                            if g != options["g_model"]))
+        options["compare"] = ",".join(f"g={g}" for g in G_MODELS if g != options["g_model"])
+    # written from the command line's own table (jobs/cli.py argv)
+    argv = job_argv("plot", out=out, **values, **options,
+                    shader=model_node.implementation(node))
     return argv, notes
 
 

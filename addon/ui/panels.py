@@ -14,7 +14,8 @@ from .operators import (PLOT_IMAGE, CTLAB_OT_add_node_group, CTLAB_OT_add_textur
                         CTLAB_OT_render_comparison, CTLAB_OT_scene_comparison,
                         CTLAB_OT_set_view_all,
                         CTLAB_OT_switch_implementation, CTLAB_OT_sync_lighting, JOBS)
-from ..core.model import LIGHT_SLOTS, ggx_alpha, perceptual_roughness, transport_notes
+from ..core.model import (IMPLEMENTATION_LABELS, LIGHT_SLOTS, ggx_alpha, perceptual_roughness,
+                          transport_notes)
 
 
 def _source_label(sock: bpy.types.NodeSocket) -> str:
@@ -136,7 +137,7 @@ class CTLAB_PT_material(bpy.types.Panel):
 
         impl = model_node.implementation(node)
         box = layout.box()
-        box.label(text=f"Implementation: {model_node.IMPLEMENTATION_LABELS[impl]}",
+        box.label(text=f"Implementation: {IMPLEMENTATION_LABELS[impl][0]}",
                   icon='SCRIPT' if impl == "osl" else 'NODETREE')
         if impl == "osl":
             reason = model_node.osl_unavailable_reason(scene)

@@ -11,12 +11,10 @@ import bpy
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from ..blender.paths import PACKAGE, preferences
+from ..core.model import IMPLEMENTATION_LABELS
 
-IMPLEMENTATION_ITEMS = (
-    ("nodes", "Node Group", "The shader-node group: Cycles (CPU or GPU, SVM or OSL) and EEVEE"),
-    ("osl", "OSL Shader", "The OSL shader: Cycles on the CPU with Open Shading Language on; "
-                          "also offers the reference (Monte Carlo) indirect light"),
-)
+# the node group first: the default (it runs on every back end)
+IMPLEMENTATION_ITEMS = tuple((i, *IMPLEMENTATION_LABELS[i]) for i in ("nodes", "osl"))
 DEFAULT_SAMPLES = 64
 
 

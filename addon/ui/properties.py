@@ -14,20 +14,7 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, PointerProperty, StringProperty
 
 from ..blender import model_node
-from ..core.model import IBL_LABELS, LIGHT_TRANSPORT_LABELS, OPTION_VALUES
-
-_LABELS = {"cook_torrance": "Cook-Torrance", "smith_ggx_correlated": "Smith (height-correlated)",
-           "unity_smith_joint": "Unity (Smith joint approximation)",
-           "disney": "Disney", "lambert": "Lambert", "physical": "Physical", "unity": "Unity",
-           "NdotL": "N·L", "NdotV": "N·V", "NdotH": "N·H", "VdotH": "V·H", "D": "D", "F": "F",
-           "G": "G", "spec_color": "Specular Colour", "specular_brdf": "Specular BRDF",
-           "diffuse_brdf": "Diffuse BRDF"}
-
-
-def label(value: str) -> str:
-    return _LABELS.get(value) or IBL_LABELS.get(value, (None,))[0] or \
-        value.replace("_", " ").title()
-
+from ..core.model import IBL_LABELS, LIGHT_TRANSPORT_LABELS, OPTION_VALUES, label
 
 def _items(key):
     return tuple((v, label(v), "") for v in OPTION_VALUES[key])
@@ -38,8 +25,9 @@ VIEW_ITEMS = _items("view")
 G_ITEMS = _items("g_model")
 DIFFUSE_ITEMS = _items("diffuse_model")
 UNITS_ITEMS = _items("units")
-ENERGY_ITEMS = (("none", "Single Scattering", "The seed's model: single-scattering specular"),
-                ("compensated", "Compensated", "Kulla-Conty multiple scattering"))
+ENERGY_ITEMS = tuple((v, label(v), d) for v, d in zip(
+    OPTION_VALUES["energy"], ("The seed's model: single-scattering specular",
+                              "Kulla-Conty multiple scattering"), strict=True))
 IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in OPTION_VALUES["ibl"])
 TRANSPORT_ITEMS = tuple((m, *LIGHT_TRANSPORT_LABELS[m]) for m in OPTION_VALUES["light_transport"])
 
