@@ -18,28 +18,48 @@ BLENDER_MODULES = {"bpy", "mathutils", "bmesh", "gpu", "cycles", "bl_math", "add
 
 def _modules():
     """{(layer, module): [(imported layer, imported module or None, line)]} from every import
-    of every module, top-level or inside functions."""
+    of every module, top-level or inside functions; a package's modules are named with dots
+    (ui.operators.jobs), and a relative import is resolved from the module's own package."""
     graph = {}
     for layer in LAYERS:
-        for path in sorted((ADDON / layer).glob("*.py")):
-            name = (layer, path.stem)
+        for path in sorted((ADDON / layer).rglob("*.py")):
+            rel = path.relative_to(ADDON).with_suffix("").parts      # ("ui", "operators", "jobs")
+            package = rel[:-1]                                      # ("ui", "operators")
+            if rel[-1] == "__init__":
+                rel = rel[:-1]
+                package = rel
+            if len(rel) < 2:
+                continue                                            # the layer's __init__
+            name = (layer, ".".join(rel[1:]))
             edges = graph.setdefault(name, [])
             for node in ast.walk(ast.parse(path.read_text(), str(path))):
                 if isinstance(node, ast.ImportFrom) and node.level:
+                    base = list(package[:len(package) - (node.level - 1)])
                     parts = (node.module or "").split(".") if node.module else []
-                    if node.level == 1:                    # the same layer
-                        target_layer, rest = layer, parts
-                    else:                                  # ..layer.module
-                        target_layer, rest = parts[0], parts[1:]
-                    if rest:
-                        edges.append((target_layer, rest[0], node.lineno))
-                    else:
-                        edges += [(target_layer, a.name, node.lineno) for a in node.names]
+                    target = base + parts
+                    # "from ..blender import model_node": the names are the modules
+                    targets = [target + [a.name] for a in node.names] if len(target) < 2 \
+                        else [target]
+                    for target in targets:
+                        if len(target) < 2:            # the add-on's own package
+                            continue
+                        edges.append((target[0], _module_of(target), node.lineno))
                 elif isinstance(node, ast.Import):
                     edges += [("external", a.name.split(".")[0], node.lineno) for a in node.names]
                 elif isinstance(node, ast.ImportFrom):
                     edges.append(("external", (node.module or "").split(".")[0], node.lineno))
     return graph
+
+
+def _module_of(target: list) -> str:
+    """The module a dotted target names, within its layer: a package's module when the
+    package is a folder (ui.operators.jobs), else the first name (core.model)."""
+    layer, rest = target[0], target[1:]
+    if (ADDON / layer / rest[0]).is_dir():
+        if len(rest) > 1 and (ADDON / layer / rest[0] / f"{rest[1]}.py").is_file():
+            return f"{rest[0]}.{rest[1]}"
+        return rest[0]
+    return rest[0]
 
 
 GRAPH = _modules()
