@@ -3,7 +3,7 @@ so that no first use integrates them: per G option, dfg_<G>.npy (the split-sum's
 bias of specColor and the Disney factor, ibl_bake.dfg_table) and dominant_<G>.npy (the
 corrected split-sum's dominant direction, ibl_bake.dominant_table), integrated for this
 model's D and each G (addon/core/ibl_bake.py). Run it after changing the model or the tables'
-parameters; tests/test_ibl_bake.py fails until it is run.
+parameters; tests/render/test_ibl_bake.py fails until it is run.
 
     .venv-bpy<series>/bin/python scripts/build_tables.py
 """

@@ -9,7 +9,7 @@
   (t = 0 is the bottom row; always bilinear, edges clamped). The shader is told which
   (``osl_texture_rows_bottom_up``) and reads tables only at texel centres, so both give the
   same values. ``gettextureinfo()`` crashes Cycles 5.2 (a segmentation fault while it optimises
-  the shader), so the shader never calls it. tests/test_versions.py measures both facts.
+  the shader), so the shader never calls it. tests/render/test_versions.py measures both facts.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ through a panoramic equirectangular camera, one sample per pixel at the pixel's 
 filter of width 0.01), no denoising, Standard view transform, saved as a 32-bit float RGB EXR
 of the raw values. The camera turned (90 deg, 0, -90 deg) makes the image's mapping Blender's
 Environment Texture mapping: direction d is at s = 0.5 - atan2(d.y, d.x) / 2 pi,
-t = 0.5 + atan2(d.z, hypot(d.x, d.y)) / pi, the file's top row +Z (tests/test_world_bake.py
+t = 0.5 + atan2(d.z, hypot(d.x, d.y)) / pi, the file's top row +Z (tests/render/test_world_bake.py
 checks it against forest.exr and an analytic gradient).
 
 A Sky Texture's sun disc (about half a degree, a few pixels) would be missed or over-counted

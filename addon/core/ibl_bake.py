@@ -270,7 +270,7 @@ def _params_key() -> str:
 
 
 # The DFG tables depend on the model alone, so the extension ships them (addon/data/, written
-# by scripts/build_tables.py; tests/test_ibl_bake.py checks that integrating them again gives
+# by scripts/build_tables.py; tests/render/test_ibl_bake.py checks that integrating them again gives
 # the same values): a first bake reads them instead of integrating for seconds.
 
 def table_signature() -> dict:

@@ -2,7 +2,7 @@
 the key-light and world inputs, and the derived quantities the UI shows.
 
 Every implementation and caller reads these names from here: the OSL shader's parameters
-(tests/test_interface.py checks the shader against this table), the node group's interface
+(tests/render/test_interface.py checks the shader against this table), the node group's interface
 (addon/blender/node_group.py builds its sockets from INPUTS), the model-node API, light sync,
 the command line and the UI. Like MaterialX's node definitions, one interface serves
 implementations in two languages.

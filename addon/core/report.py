@@ -99,7 +99,7 @@ roughness (light that would scatter again between microfacets is dropped). Smith
 more than the Cook-Torrance (V-cavity) G, min(1, 2(n.h)(n.v)/(v.h), 2(n.h)(n.l)/(v.h)), whose
 masking is weaker at grazing views (Heitz 2014, section 5): with this model's GGX D the
 Cook-Torrance G keeps more energy on rough surfaces, most at grazing views, and both stay
-below 1 (brute-force quadrature of the model's formulas agrees; tests/test_energy.py). With
+below 1 (brute-force quadrature of the model's formulas agrees; tests/slow/test_energy.py). With
 energy compensated (Turquin 2019's albedo scaling with Kulla and Conty's Fresnel term, as
 Cycles compensates Principled's GGX) the lobe reflects everything: the dotted curves sit at 1.
 Solid: the first set; dashed: the second; dotted: the third. Curves are measured from the renders (pixels binned by
