@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from . import svg
 from .hdri import uniform_world
 from .model import ModelOptions
 
@@ -63,39 +62,6 @@ def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list
                        "albedo": [None if math.isnan(x) else float(x) for x in mean],
                        "pixels": counts.astype(int).tolist()})
     return curves
-
-
-def svg_plot(curves_by_g: dict, width: int = 710, height: int = 320) -> str:
-    """Directional albedo against the view angle: one colour per smoothness, solid for the
-    first curve set, dashed for the second, dotted for the third. A standalone <svg>."""
-    left, right, top, bottom = 48, 300, 12, 36      # the legend (curve sets) on the right
-    pw, ph = width - left - right, height - top - bottom
-    y_max = 1.1
-    parts = svg.document(width, height)
-    xy = svg.view_angle_axes(parts, (left, top, pw, ph), height, y_max, "directional albedo")
-    legend_y = top + 10
-    dashes = ("", " stroke-dasharray='5 3'", " stroke-dasharray='1 2'")
-    for k, (g_model, curves) in enumerate(curves_by_g.items()):
-        dash = dashes[k % len(dashes)]
-        for i, curve in enumerate(curves):
-            colour = svg.COLOURS[i % len(svg.COLOURS)]
-            points = " ".join("%.1f,%.1f" % xy(t, e) for t, e in
-                              zip(curve["theta_deg"], curve["albedo"]) if e is not None)
-            parts.append(f"<polyline points='{points}' fill='none' stroke='{colour}' "
-                         f"stroke-width='1.6'{dash}/>")
-            if k == 0:
-                parts.append(f"<line x1='{left + pw + 10}' y1='{legend_y}' x2='{left + pw + 30}' "
-                             f"y2='{legend_y}' stroke='{colour}' stroke-width='2'/>"
-                             f"<text x='{left + pw + 36}' y='{legend_y + 4}'>smoothness "
-                             f"{curve['smoothness']:.1f}</text>")
-                legend_y += 15
-    for k, g_model in enumerate(curves_by_g):
-        dash = dashes[k % len(dashes)]
-        parts.append(svg.legend_entry(left + pw + 10, legend_y + 10, g_model, dash=dash,
-                                      width=1.0))
-        legend_y += 15
-    parts.append("</svg>")
-    return "".join(parts)
 
 
 def mean_albedo(curve: dict) -> float:

@@ -1,14 +1,13 @@
 """The BRDF plot's files (``ctlab plot``; docs/model.md "BRDF plots"), from the values of
 brdf_plot.assemble: the slices as float EXRs and PNGs (log scale, labelled axes, a colour bar),
-the lobes and the directional albedo as SVG, PNG and CSV, a composite plot.png for the
-add-on's Image Editor, and plot.json with the parameters and axes. Every file of a plot is
-written under a temporary name and renamed when all are whole (files.atomic_paths)."""
+the lobes and the directional albedo as SVG, PNG (both drawn by core/figures.py) and CSV, a
+composite plot.png for the add-on's Image Editor, and plot.json with the parameters and axes.
+Every file of a plot is written under a temporary name and renamed when all are whole
+(files.atomic_paths)."""
 
 from __future__ import annotations
 
-import html
 import io
-import math
 from pathlib import Path
 
 import numpy as np
@@ -18,112 +17,12 @@ from .brdf_plot import luminance, slice_name
 from .errors import UserError
 from .files import atomic_paths, json_text
 from .hdri import write_float_exr
-from . import raster_figures, svg
-from .svg import COLOURS, DASHES
+from . import figures
+from .svg import SvgCanvas
 
 
 def _units_note(settings) -> str:
     return " (x pi: Unity's units)" if settings.units == "unity" else ""
-
-
-# ----------------------------------------------------------------------------------------
-# SVG
-
-def _dash(k: int) -> str:
-    pattern = DASHES[k % len(DASHES)]
-    return f" stroke-dasharray='{' '.join(map(str, pattern))}'" if pattern else ""
-
-
-def lobe_svg(lobes: dict, labels: dict, title: str = "", width: int = 640,
-             height: int = 420) -> str:
-    """f_r (n.l) (luminance) in the incidence plane as polar curves: the normal up, θl from
-    -90° (left) to 90° (right), one colour per view angle θv, one dash pattern per variant
-    (``lobes``: {tag: (len(θv), steps, 3)}). The radius is linear, 1 at the largest value."""
-    theta_l = np.radians(bp.lobe_angles())
-    peak = max(float(np.max(luminance(v))) for v in lobes.values()) or 1.0
-    cx, cy, r = width / 2, height - 60, min(width / 2 - 40, height - 110)
-    parts = svg.document(width, height)
-    for f in (0.25, 0.5, 0.75, 1.0):
-        parts.append(f"<path d='M {cx - r * f:.1f} {cy} A {r * f:.1f} {r * f:.1f} 0 0 1 "
-                     f"{cx + r * f:.1f} {cy}' fill='none' stroke='#ddd'/>"
-                     f"<text x='{cx + r * f - 2:.1f}' y='{cy + 13}' fill='#666' "
-                     f"text-anchor='end'>{raster_figures.number(peak * f)}</text>")
-    for deg in range(-90, 91, 30):
-        a = math.radians(deg)
-        x, y = cx + r * math.sin(a), cy - r * math.cos(a)
-        parts.append(f"<line x1='{cx}' y1='{cy}' x2='{x:.1f}' y2='{y:.1f}' stroke='#eee'/>"
-                     f"<text x='{cx + (r + 14) * math.sin(a):.1f}' "
-                     f"y='{cy - (r + 14) * math.cos(a) + 4:.1f}' text-anchor='middle' "
-                     f"fill='#666'>{deg}&#176;</text>")
-    parts.append(f"<line x1='{cx - r - 10}' y1='{cy}' x2='{cx + r + 10}' y2='{cy}' "
-                 "stroke='#444'/>")
-    for i, tv in enumerate(bp.LOBE_VIEW_ANGLES):
-        a = math.radians(tv)
-        colour = COLOURS[i % len(COLOURS)]
-        parts.append(f"<line x1='{cx}' y1='{cy}' x2='{cx + 0.18 * r * math.sin(a):.1f}' "
-                     f"y2='{cy - 0.18 * r * math.cos(a):.1f}' stroke='{colour}' "
-                     "stroke-width='2.5'/>")
-        for k, (tag, values) in enumerate(lobes.items()):
-            rho = luminance(values[i]) / peak
-            pts = " ".join(f"{cx + r * q * math.sin(t):.1f},{cy - r * q * math.cos(t):.1f}"
-                           for t, q in zip(theta_l, rho))
-            parts.append(f"<polyline points='{pts}' fill='none' stroke='{colour}' "
-                         f"stroke-width='1.6'{_dash(k)}/>")
-    y = 18
-    if title:
-        parts.append(f"<text x='10' y='{y}' font-size='13' font-weight='600'>"
-                     f"{html.escape(title)}</text>")
-        y += 18
-    for i, tv in enumerate(bp.LOBE_VIEW_ANGLES):
-        parts.append(f"<line x1='10' y1='{y - 4}' x2='30' y2='{y - 4}' "
-                     f"stroke='{COLOURS[i % len(COLOURS)]}' stroke-width='2.5'/>"
-                     f"<text x='36' y='{y}'>&#952;v = {tv:g}&#176;</text>")
-        y += 15
-    y = 18
-    for k, tag in enumerate(lobes):
-        parts.append(f"<line x1='{width - 260}' y1='{y - 4}' x2='{width - 235}' y2='{y - 4}' "
-                     f"stroke='#333' stroke-width='1.6'{_dash(k)}/>"
-                     f"<text x='{width - 230}' y='{y}'>{html.escape(labels[tag])}</text>")
-        y += 15
-    parts.append(f"<text x='{cx}' y='{height - 12}' text-anchor='middle' fill='#444'>"
-                 "f_r (n.l), luminance, in the incidence plane; radius linear, "
-                 f"outer ring {raster_figures.number(peak)}</text></svg>")
-    return "".join(parts)
-
-
-def albedo_svg(albedos: dict, labels: dict, title: str = "", width: int = 700,
-               height: int = 320) -> str:
-    """Directional albedo (luminance) against θv: solid total, dashed specular, dotted
-    diffuse; one colour per variant (``albedos``: {tag: {"specular"|"diffuse"|"total":
-    (len(θv), 3)}})."""
-    tv = bp.albedo_angles()
-    top_value = max(1.0, max(float(np.max(luminance(a["total"]))) for a in albedos.values()))
-    y_max = math.ceil(top_value * 10 + 0.5) / 10
-    left, right, top, bottom = 48, 270, 28 if title else 12, 36
-    pw, ph = width - left - right, height - top - bottom
-
-    parts = svg.document(width, height)
-    if title:
-        parts.append(f"<text x='10' y='18' font-size='13' font-weight='600'>"
-                     f"{html.escape(title)}</text>")
-    xy = svg.view_angle_axes(parts, (left, top, pw, ph), height, y_max,
-                             "directional albedo (luminance)")
-    styles = (("total", ""), ("specular", " stroke-dasharray='6 3'"),
-              ("diffuse", " stroke-dasharray='2 2'"))
-    y = top + 10
-    for k, (tag, a) in enumerate(albedos.items()):
-        colour = COLOURS[k % len(COLOURS)]
-        for part, dash in styles:
-            pts = " ".join("%.1f,%.1f" % xy(t, e) for t, e in zip(tv, luminance(a[part])))
-            parts.append(f"<polyline points='{pts}' fill='none' stroke='{colour}' "
-                         f"stroke-width='1.6'{dash}/>")
-        parts.append(svg.legend_entry(left + pw + 10, y + 4, labels[tag], colour))
-        y += 15
-    for part, dash in styles:
-        parts.append(svg.legend_entry(left + pw + 10, y + 10, part, dash=dash, width=1.6))
-        y += 15
-    parts.append("</svg>")
-    return "".join(parts)
 
 
 # ----------------------------------------------------------------------------------------
@@ -208,7 +107,6 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
     _check_finite(results)
     out = Path(out)
     tags = [t for t in results if t != "labels"]
-    labels = results["labels"]
     base = results[""]
     exrs = {slice_name(): base["slice"]["f_r"]}
     exrs.update({slice_name(view): base["slice"][view] for view in settings.views})
@@ -217,10 +115,10 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
     albedos = {tag: results[tag]["albedo"] for tag in tags}
     title = (f"metallic {settings.metallic:.3g}, smoothness {settings.smoothness:.3g}"
              + _units_note(settings))
-    texts = {"lobe.svg": lobe_svg(lobes, labels, "Lobes: " + title),
-             "albedo.svg": albedo_svg(albedos, labels, "Directional albedo: " + title),
-             "lobe.csv": lobe_csv(lobes), "albedo.csv": albedo_csv(albedos)}
-    pngs = raster_figures.figures(settings, results, title)
+    texts = {f"{name}.svg": c.svg() for name, c in
+             figures.curve_figures(results, title, canvas=SvgCanvas).items()}
+    texts.update({"lobe.csv": lobe_csv(lobes), "albedo.csv": albedo_csv(albedos)})
+    pngs = figures.figures(settings, results, title)
     names = [f"{n}.exr" for n in exrs] + list(texts) + list(pngs) + ["plot.json"]
     data = plot_data(settings, results, names)
     if extra:

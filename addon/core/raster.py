@@ -13,7 +13,7 @@ import json
 import numpy as np
 
 from .errors import UserError
-from .files import DATA_DIR, atomic_path
+from .files import DATA_DIR
 from .hdri import oiio
 
 
@@ -102,6 +102,13 @@ def diverging(t) -> np.ndarray:
 
 # --- The canvas ----------------------------------------------------------------------
 
+def text_width(s: str, size=13) -> float:
+    """The pen's advance over ``s`` in px at the font's nearest size (the ink may overhang by
+    a pixel)."""
+    _, table = _glyphs(size)
+    return float(sum(_glyph(table, c)[6] for c in str(s)))
+
+
 class Canvas:
     """An RGB image to draw on: ``rgb`` float32 (height, width, 3), display sRGB in 0..1."""
 
@@ -181,9 +188,7 @@ class Canvas:
     # Text
 
     def text_width(self, s: str, size=13) -> float:
-        """The pen's advance over ``s`` in px (the ink may overhang by a pixel)."""
-        _, table = _glyphs(size)
-        return float(sum(_glyph(table, c)[6] for c in str(s)))
+        return text_width(s, size)
 
     def text(self, x, y, s, colour=(0, 0, 0), size=13, anchor="start", rotate=0) -> None:
         """Draw ``s`` with its baseline through (x, y): starting there (anchor 'start'),
@@ -222,14 +227,10 @@ class Canvas:
     # Output
 
     def save_png(self, path) -> None:
-        """An 8-bit RGB PNG of the canvas, written whole or not at all (UserError if not)."""
-        OIIO = oiio()
-        buf = OIIO.ImageBuf(OIIO.ImageSpec(self.width, self.height, 3, OIIO.UINT8))
-        buf.set_pixels(OIIO.ROI(0, self.width, 0, self.height, 0, 1, 0, 3),
-                       np.clip(self.rgb, 0.0, 1.0))
-        with atomic_path(path) as tmp:
-            if not buf.write(str(tmp), fileformat="png"):
-                raise UserError(f"cannot write {path}: {buf.geterror().strip()}")
+        """An 8-bit RGB PNG of the canvas, written whole or not at all (the one PNG writer,
+        compare.write_png)."""
+        from .compare import write_png
+        write_png(path, self.rgb)
 
 
 # --- Lines ---------------------------------------------------------------------------

@@ -129,7 +129,8 @@ def attribution_table(steps) -> str:
 
 
 def furnace_section(furnace: dict) -> str:
-    from .energy import mean_albedo, svg_plot
+    from .energy import mean_albedo
+    from .figures import furnace_figure
     head = "<tr><th>smoothness</th>" + "".join(
         f"<th>{html.escape(g)}: mean</th><th>max</th>" for g in furnace) + "</tr>"
     rows = []
@@ -139,7 +140,7 @@ def furnace_section(furnace: dict) -> str:
             f"<td>{mean_albedo(cs[i]):.3f}</td>"
             f"<td>{max(x for x in cs[i]['albedo'] if x is not None):.3f}</td>" for cs in curves)
         rows.append(f"<tr><td>{c['smoothness']:.2f}</td>{cells}</tr>")
-    return (f"<h2>Energy: white furnace</h2>{FURNACE_NOTE}{svg_plot(furnace)}"
+    return (f"<h2>Energy: white furnace</h2>{FURNACE_NOTE}{furnace_figure(furnace).svg()}"
             f"<table>{head}{''.join(rows)}</table>")
 
 

@@ -1,9 +1,15 @@
-"""The reports' SVG figures in one place: the document and the axes of a curve against the
-view angle θv (the white furnace's albedo, the BRDF plot's directional albedo)."""
+"""The SVG back end of the figures: a canvas with the raster Canvas's drawing calls (rect,
+line, text, text_width; core/raster.py), writing SVG elements instead of pixels. Each figure is
+drawn once, by a function of core/figures.py that takes either canvas: a PNG for plot.png and
+the add-on's Image Editor, an SVG for the reports and the plot's vector files."""
 
 from __future__ import annotations
 
+import html
+
 import numpy as np
+
+from .raster import text_width
 
 # one colour per curve set (Dark2); the dash patterns (on, off) tell a lobe plot's variants
 # apart: five are the most a plot has (its model and four --compare variants)
@@ -11,42 +17,52 @@ COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a
 DASHES = ((), (7, 3), (2, 2), (12, 3), (1, 4), (4, 6))
 
 
-def document(width: int, height: int) -> list:
-    """The opening of a standalone <svg> on white, as a list of parts ("</svg>" closes it)."""
-    return [f"<svg xmlns='http://www.w3.org/2000/svg' width='{width}' height='{height}' "
-            f"viewBox='0 0 {width} {height}' font-family='sans-serif' font-size='11'>",
-            f"<rect width='{width}' height='{height}' fill='white'/>"]
+def _colour(c) -> str:
+    if isinstance(c, str):
+        return c
+    r, g, b = (max(0, min(255, round(255 * float(x)))) for x in c[:3])
+    return f"#{r:02x}{g:02x}{b:02x}"
 
 
-def view_angle_axes(parts: list, box: tuple, height: int, y_max: float, y_label: str):
-    """Axes of θv from 0 to 90° (ticks every 15°) against 0 .. y_max (grid lines every 0.25,
-    or 0.5 above 2) in the plot box (left, top, width, height); returns xy(θv, value) -> the
-    point in the figure."""
-    left, top, pw, ph = box
+class SvgCanvas:
+    """A standalone <svg> on white, drawn with the raster Canvas's calls (the same
+    coordinates: pixels from the top left)."""
 
-    def xy(theta, value):
-        return left + pw * theta / 90.0, top + ph * (1 - value / y_max)
-    parts.append(f"<rect x='{left}' y='{top}' width='{pw}' height='{ph}' fill='none' "
-                 "stroke='#888'/>")
-    for e in np.arange(0.0, y_max + 1e-9, 0.25 if y_max <= 2 else 0.5):
-        x0, y0 = xy(0, e)
-        parts.append(f"<line x1='{x0}' y1='{y0:.1f}' x2='{x0 + pw}' y2='{y0:.1f}' "
-                     f"stroke='#ddd'/><text x='{left - 6}' y='{y0 + 4:.1f}' "
-                     f"text-anchor='end'>{e:g}</text>")
-    for t in range(0, 91, 15):
-        x0, y0 = xy(t, 0)
-        parts.append(f"<text x='{x0:.1f}' y='{y0 + 16}' text-anchor='middle'>{t}</text>")
-    parts.append(f"<text x='{left + pw / 2}' y='{height - 4}' text-anchor='middle'>"
-                 "&#952;v, the view angle from the normal (degrees)</text>")
-    parts.append(f"<text x='12' y='{top + ph / 2}' transform='rotate(-90 12 {top + ph / 2})' "
-                 f"text-anchor='middle'>{y_label}</text>")
-    return xy
+    def __init__(self, width: int, height: int, background=(1.0, 1.0, 1.0)):
+        self.width, self.height = int(width), int(height)
+        self.parts = [f"<svg xmlns='http://www.w3.org/2000/svg' width='{self.width}' "
+                      f"height='{self.height}' viewBox='0 0 {self.width} {self.height}' "
+                      "font-family='Inter, sans-serif'>",
+                      f"<rect width='{self.width}' height='{self.height}' "
+                      f"fill='{_colour(background)}'/>"]
 
+    def rect(self, x, y, w, h, fill=None, stroke=None, width=1.0) -> None:
+        self.parts.append(f"<rect x='{x:.1f}' y='{y:.1f}' width='{w:.1f}' height='{h:.1f}' "
+                          f"fill='{_colour(fill) if fill is not None else 'none'}'"
+                          + (f" stroke='{_colour(stroke)}' stroke-width='{width:g}'"
+                             if stroke is not None else "") + "/>")
 
-def legend_entry(x: float, y: float, label: str, stroke: str = "#333", dash: str = "",
-                 width: float = 2.0) -> str:
-    """A legend line (20 units long, at height y - 4) and its label (escaped) after it."""
-    import html
-    return (f"<line x1='{x}' y1='{y - 4}' x2='{x + 20}' y2='{y - 4}' stroke='{stroke}' "
-            f"stroke-width='{width}'{dash}/><text x='{x + 26}' y='{y}'>{html.escape(label)}"
-            "</text>")
+    def line(self, points, colour, width=1.5, dash=None) -> None:
+        """A polyline; a point with a NaN breaks it there (as the raster canvas's)."""
+        pts = np.asarray(points, np.float64).reshape(-1, 2)
+        dashes = f" stroke-dasharray='{' '.join(f'{d:g}' for d in dash)}'" if dash else ""
+        for run in np.split(pts, np.flatnonzero(~np.isfinite(pts).all(axis=1))):
+            run = run[np.isfinite(run).all(axis=1)]
+            if len(run) < 2:
+                continue
+            coords = " ".join(f"{x:.1f},{y:.1f}" for x, y in run)
+            self.parts.append(f"<polyline points='{coords}' fill='none' "
+                              f"stroke='{_colour(colour)}' stroke-width='{width:g}' "
+                              f"stroke-linejoin='round' stroke-linecap='round'{dashes}/>")
+
+    def text_width(self, s: str, size=13) -> float:
+        return text_width(s, size)
+
+    def text(self, x, y, s, colour=(0, 0, 0), size=13, anchor="start", rotate=0) -> None:
+        turn = f" transform='rotate(-90 {x:.1f} {y:.1f})'" if rotate == 90 else ""
+        self.parts.append(f"<text x='{x:.1f}' y='{y:.1f}' font-size='{size}' "
+                          f"text-anchor='{anchor}' fill='{_colour(colour)}'{turn}>"
+                          f"{html.escape(str(s))}</text>")
+
+    def svg(self) -> str:
+        return "".join(self.parts) + "</svg>"

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from addon.core import raster
+from addon.core import compare, raster
 from addon.core.errors import UserError
 from addon.core.files import DATA_DIR
 from addon.core.hdri import oiio
@@ -291,7 +291,7 @@ def test_a_failed_save_leaves_nothing(tmp_path, monkeypatch):
             return HalfWritten if name == "ImageBuf" else getattr(oiio(), name)
 
     good = (tmp_path / "plot.png").read_bytes()
-    monkeypatch.setattr(raster, "oiio", FailingOIIO)
+    monkeypatch.setattr(compare, "oiio", FailingOIIO)     # the one PNG writer
     with pytest.raises(UserError, match="No space left"):
         c.save_png(tmp_path / "plot.png")
     assert (tmp_path / "plot.png").read_bytes() == good

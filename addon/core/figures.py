@@ -1,7 +1,12 @@
-"""The BRDF plot's PNG figures (plot_figures.write_plot writes them): each slice as a heat map
-with labelled θh and θd axes and a colour bar (log scale for the BRDF-valued views), each
-variant's relative difference from the plot's model, the lobes and the directional albedo, and
-plot.png, the three side by side, which the add-on shows in Blender's Image Editor."""
+"""Every figure the project draws, each drawn once (the one figure module): the BRDF plot's
+slices as heat maps with labelled θh and θd axes and a colour bar (log scale for the
+BRDF-valued views), each variant's relative difference from the plot's model, the lobes, the
+directional albedo, plot.png (the three side by side, which the add-on shows in Blender's
+Image Editor), and the main report's white-furnace albedo curves.
+
+A curve figure takes the canvas it draws on: core/raster.py's Canvas (a PNG) or core/svg.py's
+SvgCanvas (an SVG, the same calls), so the plot's lobe.png and lobe.svg, or a report's figure,
+cannot disagree. The heat maps are raster only (their pixels are the data)."""
 
 from __future__ import annotations
 
@@ -12,7 +17,7 @@ import numpy as np
 from . import brdf_plot as bp
 from .brdf_plot import VIEW_TITLES, luminance, slice_name
 from .raster import Canvas, colormap, diverging
-from .svg import COLOURS, DASHES
+from .svg import COLOURS, DASHES, SvgCanvas
 
 SLICE_DECADES = 7                     # a log slice shows max / 10^7 .. max
 SCALE = 4                              # screen pixels per slice pixel
@@ -104,10 +109,11 @@ def _nice(x: float) -> float:
 
 
 def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
-                height: int = 420) -> Canvas:
-    """The polar lobes (as plot_figures.lobe_svg): normal up, θl from -90° to 90°, one colour
-    per view angle, one dash pattern per variant, linear radius."""
-    c = Canvas(width, height)
+                height: int = 420, canvas=Canvas):
+    """f_r (n.l) (luminance) in the incidence plane as polar curves: the normal up, θl from
+    -90° (left) to 90° (right), one colour per view angle θv, one dash pattern per variant
+    (``lobes``: {tag: (len(θv), steps, 3)}); the radius is linear, 1 at the largest value."""
+    c = canvas(width, height)
     theta_l = np.radians(bp.lobe_angles())
     peak = max(float(np.max(luminance(v))) for v in lobes.values()) or 1.0
     cx, cy = width / 2, height - 64
@@ -150,20 +156,14 @@ def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
     return c
 
 
-def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
-                  height: int = 420) -> Canvas:
-    """Directional albedo (luminance) against θv: total solid, specular dashed, diffuse
-    dotted; one colour per variant."""
-    c = Canvas(width, height)
-    tv = bp.albedo_angles()
-    top_value = max(1.0, max(float(np.max(luminance(a["total"]))) for a in albedos.values()))
-    y_max = math.ceil(top_value * 10 + 0.5) / 10
-    left, top = 56, 36
-    pw, ph = width - left - 20, height - top - 60 - 16 * (len(albedos) + 1)
+def _view_angle_axes(c, box: tuple, y_max: float, y_label: str):
+    """Axes of θv from 0 to 90° (ticks every 15°) against 0 .. y_max (grid lines every 0.25,
+    or 0.5 above 2) in the box (left, top, width, height); returns xy(θv, value) -> the
+    point on the canvas."""
+    left, top, pw, ph = box
 
     def xy(t, e):
         return left + pw * t / 90.0, top + ph * (1 - e / y_max)
-    c.text(10, 20, title, size=13)
     for e in np.arange(0.0, y_max + 1e-9, 0.25 if y_max <= 2 else 0.5):
         x0, y0 = xy(0, e)
         c.line([(x0, y0), (x0 + pw, y0)], LIGHT, width=1)
@@ -174,7 +174,23 @@ def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
     c.rect(left, top, pw, ph, stroke=GREY)
     c.text(left + pw / 2, top + ph + 34, "θv, view angle from the normal (°)", size=13,
            anchor="middle")
-    c.text(16, top + ph / 2, "directional albedo", size=13, anchor="middle", rotate=90)
+    c.text(16, top + ph / 2, y_label, size=13, anchor="middle", rotate=90)
+    return xy
+
+
+def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
+                  height: int = 420, canvas=Canvas):
+    """Directional albedo (luminance) against θv: total solid, specular dashed, diffuse
+    dotted; one colour per variant (``albedos``: {tag: {"specular"|"diffuse"|"total":
+    (len(θv), 3)}})."""
+    c = canvas(width, height)
+    tv = bp.albedo_angles()
+    top_value = max(1.0, max(float(np.max(luminance(a["total"]))) for a in albedos.values()))
+    y_max = math.ceil(top_value * 10 + 0.5) / 10
+    left, top = 56, 36
+    pw, ph = width - left - 20, height - top - 60 - 16 * (len(albedos) + 1)
+    c.text(10, 20, title, size=13)
+    xy = _view_angle_axes(c, (left, top, pw, ph), y_max, "directional albedo")
     styles = (("total", None), ("specular", (6.0, 3.0)), ("diffuse", (2.0, 2.0)))
     y = top + ph + 56
     for k, (tag, a) in enumerate(albedos.items()):          # a colour per variant
@@ -191,6 +207,36 @@ def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
         c.line([(x, y - 4), (x + 24, y - 4)], BLACK, width=1.8, dash=dash)
         c.text(x + 30, y, part, size=11)
         x += 30 + c.text_width(part, 11) + 24
+    return c
+
+
+def furnace_figure(curves_by_g: dict, width: int = 720, height: int = 340,
+                   canvas=SvgCanvas):
+    """The white furnace's directional albedo against θv (core/energy.py): one colour per
+    smoothness, one dash pattern per curve set (a G, compensated or not; ``curves_by_g``:
+    {label: [{"smoothness", "theta_deg", "albedo"}, ...]}, None where unresolved)."""
+    c = canvas(width, height)
+    left, top, right = 56, 16, 230
+    pw, ph = width - left - right, height - top - 60
+    xy = _view_angle_axes(c, (left, top, pw, ph), 1.1, "directional albedo")
+    legend_x, y = left + pw + 16, top + 10
+    for k, (label, curves) in enumerate(curves_by_g.items()):
+        dash = DASHES[k % len(DASHES)] or None
+        for i, curve in enumerate(curves):
+            colour = _hex(COLOURS[i % len(COLOURS)])
+            c.line([xy(t, e) if e is not None else (math.nan, math.nan)
+                    for t, e in zip(curve["theta_deg"], curve["albedo"])], colour, width=1.6,
+                   dash=dash)
+            if k == 0:
+                c.line([(legend_x, y - 4), (legend_x + 20, y - 4)], colour, width=2.5)
+                c.text(legend_x + 26, y, f"smoothness {curve['smoothness']:.1f}", size=11)
+                y += 15
+    y += 8
+    for k, label in enumerate(curves_by_g):
+        c.line([(legend_x, y - 4), (legend_x + 20, y - 4)], BLACK, width=1.2,
+               dash=DASHES[k % len(DASHES)] or None)
+        c.text(legend_x + 26, y, label, size=11)
+        y += 15
     return c
 
 
@@ -226,9 +272,18 @@ def figures(settings, results: dict, title: str) -> dict:
             rel = np.where(a > 0, (b - a) / a, np.nan)
         out[slice_name(tag=f"diff_{tag}") + ".png"] = slice_figure(
             rel, f"({labels[tag]} - this) / this", False, diff=True)
-    lobes = {t: results[t]["lobe"] for t in [""] + tags}
-    albedos = {t: results[t]["albedo"] for t in [""] + tags}
-    out["lobe.png"] = lobe_figure(lobes, labels, "Lobes in the incidence plane")
-    out["albedo.png"] = albedo_figure(albedos, labels, "Directional albedo")
+    out.update({f"{name}.png": c for name, c in curve_figures(results, title).items()})
     out["plot.png"] = side_by_side([out["slice.png"], out["lobe.png"], out["albedo.png"]])
     return out
+
+
+def curve_figures(results: dict, title: str, canvas=Canvas) -> dict:
+    """{"lobe": canvas, "albedo": canvas}: the plot's curves on the given kind of canvas
+    (Canvas for its PNGs, SvgCanvas for lobe.svg and albedo.svg)."""
+    labels = results["labels"]
+    tags = [t for t in results if t != "labels"]
+    lobes = {t: results[t]["lobe"] for t in tags}
+    albedos = {t: results[t]["albedo"] for t in tags}
+    return {"lobe": lobe_figure(lobes, labels, "Lobes: " + title, canvas=canvas),
+            "albedo": albedo_figure(albedos, labels, "Directional albedo: " + title,
+                                    canvas=canvas)}
