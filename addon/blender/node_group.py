@@ -45,7 +45,7 @@ POLE_MARGIN = 3e-3      # radians: the least distance of a lat-long lookup from 
 
 class _Builder:
     def __init__(self, tree: bpy.types.ShaderNodeTree, data: dict, exprs: dict,
-                 lights: "LightPlan | None" = None, light_group=None):
+                 lights: LightPlan | None = None, light_group=None):
         self.tree = tree
         self.nodes = tree.nodes
         self.data = data
@@ -379,7 +379,7 @@ def build_correction_group(data: dict, plan: SubgroupPlan, name: str,
                          "albedo (Cook-Torrance Lab; node_groups/cook_torrance.toml)")
     for label, kind, _ in plan.inputs:
         group.interface.new_socket(label, in_out='INPUT', socket_type=SOCKET_TYPES[kind])
-    for key, (label, kind) in CORRECTION_OUTPUTS.items():
+    for label, kind in CORRECTION_OUTPUTS.values():
         group.interface.new_socket(label, in_out='OUTPUT', socket_type=SOCKET_TYPES[kind])
     b = _Builder(group, data, plan.exprs)
     b.chain_group = chain_group
@@ -659,7 +659,7 @@ def _scene_transport(b: _Builder, spec: dict, view_on: list, lab, correction_gro
     group.node_tree = correction_group
     group.label = "Correction (world) and residual albedo"
     group.width = 220
-    for label, _kind_, source in plan.correction.inputs:
+    for label, _, source in plan.correction.inputs:
         b.link(b.value(source), group.inputs[label])
         b.current_frame = frame
     b.mode = "emission"

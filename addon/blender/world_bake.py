@@ -61,8 +61,9 @@ _SKIP = {"rna_type", "name_full", "session_uid", "is_evaluated", "original", "us
          "use_fake_user", "use_extra_user", "is_embedded_data", "is_missing", "is_library_indirect",
          "is_runtime_data", "tag", "is_dirty", "preview", "library_weak_reference",
          "asset_data", "override_library", "id_type", "bindcode", "is_editmode",
-         "is_float", "has_data", "is_dirty", "pixels", "frame_duration", "location",
-         "select", "show_expanded", "select_left_handle", "select_right_handle", "select_control_point"}
+         "is_float", "has_data", "pixels", "frame_duration", "location",
+         "select", "show_expanded", "select_left_handle", "select_right_handle",
+         "select_control_point"}
 
 
 def _file_hash(path: Path) -> str:

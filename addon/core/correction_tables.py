@@ -18,7 +18,7 @@ CORRECTION_TABLES = tuple(f"{kind}_{g}" for kind in CORRECTION_TABLE_KINDS
                           for g in G_MODELS) + DISNEY_TABLES
 
 
-def kernel_mean_cosines() -> "np.ndarray":
+def kernel_mean_cosines() -> np.ndarray:
     """The mean cosine to its axis of each pre-filtered level's kernel (level 0 is the HDRI
     itself: 1), K(mu) = D(h) mu over mu = r.l in [0, 1] (ibl_bake.ggx_kernel), by quadrature
     in q = (1 - mu)/2, denser toward the peak."""

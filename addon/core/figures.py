@@ -220,7 +220,7 @@ def furnace_figure(curves_by_g: dict, width: int = 720, height: int = 340,
     pw, ph = width - left - right, height - top - 60
     xy = _view_angle_axes(c, (left, top, pw, ph), 1.1, "directional albedo")
     legend_x, y = left + pw + 16, top + 10
-    for k, (label, curves) in enumerate(curves_by_g.items()):
+    for k, curves in enumerate(curves_by_g.values()):
         dash = DASHES[k % len(DASHES)] or None
         for i, curve in enumerate(curves):
             colour = _hex(COLOURS[i % len(COLOURS)])

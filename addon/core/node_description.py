@@ -244,7 +244,7 @@ class LightPlan:
         ("light", suffix, output) (a closure term as its op over such outputs)."""
         exprs = dict(self.main)
         for suffix in [""] + [f"_{i}" for i in range(1, self.slots + 1)]:
-            for name, _kind_ in self.outputs:
+            for name, _ in self.outputs:
                 if "." not in name:
                     exprs[name + suffix] = ("lights", ("light", suffix, name))
             for name, (op, count) in self.closures.items():

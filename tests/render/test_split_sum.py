@@ -106,7 +106,8 @@ def test_split_sum_equals_the_reference_on_mirrors_within_noise(tmp_path):
         y_ref = (y["ref", 1] + y["ref", 2]) / 2
         y_split = (y["split", 1] + y["split", 2]) / 2
         assert abs(y_split - y_ref) / y_ref < 0.04, (cell["col"], y)
-        de = lambda k: np.median(ciede2000(srgb_to_lab(disp["ref1"][m]), srgb_to_lab(disp[k][m])))  # noqa: E731
+        def de(k, m=m):
+            return np.median(ciede2000(srgb_to_lab(disp["ref1"][m]), srgb_to_lab(disp[k][m])))
         assert de("split1") < 1.5 * de("ref2") + 0.2, (cell["col"], de("split1"), de("ref2"))
         checked += 1
     assert checked == 3

@@ -87,7 +87,7 @@ def test_a_baked_forest_is_the_forest_file_turned_by_its_mapping(fresh):
     assert baked.shape == forest.shape == (512, 1024, 3)
     d, elevation = _directions(1024)
     # independent lookup: the direction turned by +90 deg about Z, at the file's texel
-    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    x, y = d[..., 0], d[..., 1]
     xr, yr = -y, x
     s = 0.5 - np.arctan2(yr, xr) / (2 * np.pi)
     col = np.floor(s * 1024).astype(int) % 1024
