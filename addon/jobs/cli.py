@@ -344,17 +344,19 @@ def cmd_matrix(args) -> None:
     workers = check_workers(args)
     _, base, _ = job_inputs(args)
     out = check_path("out/matrix" if args.out is None else args.out, "--out")
-    result = pipeline.run_matrix(base, args.samples, out, events(), args.verbose, workers)
+    from . import graph
+    result = graph.run_matrix(base, args.samples, out, events(), args.verbose, workers)
     say_done(dict(result, job="matrix"))
 
 
 def cmd_parity(args) -> None:
-    """The Principled-parity check (pipeline.run_parity) for each HDRI of --parity-hdris, or
+    """The Principled-parity check (graph.run_parity) for each HDRI of --parity-hdris, or
     for --hdri."""
     workers = check_workers(args)
     _, base, extra = job_inputs(args)
     out = check_path("out/parity" if args.out is None else args.out, "--out")
-    result = pipeline.run_parity(base, extra["hdris"], args.samples, out, events(),
+    from . import graph
+    result = graph.run_parity(base, extra["hdris"], args.samples, out, events(),
                                  args.verbose, name=extra["name"], workers=workers)
     say_done(dict(result, job="parity"))
 

@@ -241,6 +241,42 @@ def _merge_parity(out, plan, events, step, steps) -> dict:
 
 
 # ----------------------------------------------------------------------------------------
+# The jobs, run here
+
+def run_matrix(base: MatrixSettings, samples: int, out: Path,
+               events: pipeline.Events | None = None, verbose: bool = False,
+               workers: int = 1) -> dict:
+    """The main job: the OSL shader against Principled BSDF, the baked IBL modes against the
+    reference integration, the node group against the OSL shader, the attribution and the
+    white furnace, compared cell by cell, with report.html. Returns the comparisons. Its
+    task graph run here (``workers``: render tasks as local processes); a render done
+    already for the same settings and versions is kept."""
+    events = events or pipeline.Events()
+    plan = make_plan("matrix", base, samples)
+    check_writable(out)
+    pipeline._forget_report(out)
+    write_plan(out, plan, replace=True)
+    return run_graph(plan, out, events, verbose, workers)
+
+
+def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
+               events: pipeline.Events | None = None, verbose: bool = False,
+               name: str | None = None, workers: int = 1) -> dict:
+    """With Smith G, Lambert diffuse, metallic 1, the Sun off and no sphere shadowing another,
+    the model is Principled BSDF's single-scatter GGX metal, so our reference integration and
+    Cycles' path tracer must agree up to noise: both rendered under each HDRI (and the base's
+    lights, if it has any) and compared, each into OUT/<HDRI stem>/, or OUT/<name>/ for a
+    single HDRI given a name (the lights file's stem). Returns the verdict, the report and
+    each run's comparison. Its task graph, run here."""
+    events = events or pipeline.Events()
+    plan = make_plan("parity", base, samples, hdris=hdris, name=name)
+    check_writable(out)
+    pipeline._forget_report(out)
+    write_plan(out, plan, replace=True)
+    return run_graph(plan, out, events, verbose, workers)
+
+
+# ----------------------------------------------------------------------------------------
 # The whole graph: in this process, or render tasks as local worker processes
 
 def _describe(plan: dict, task: dict) -> str:

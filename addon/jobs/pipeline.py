@@ -161,22 +161,6 @@ def matrix_settings(base: MatrixSettings) -> dict:
     return settings
 
 
-def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | None = None,
-               verbose: bool = False, workers: int = 1) -> dict:
-    """The main job: the OSL shader against Principled BSDF, the baked IBL modes against the
-    reference integration, the node group against the OSL shader, the attribution and the
-    white furnace, compared cell by cell, with report.html. Returns the comparisons. It is
-    the task graph of jobs/graph.py run here (``workers``: render tasks as processes); a
-    render done already by the same settings and versions is kept."""
-    from . import graph
-    events = events or Events()
-    plan = graph.make_plan("matrix", base, samples)
-    check_writable(out)
-    _forget_report(out)
-    graph.write_plan(out, plan, replace=True)
-    return graph.run_graph(plan, out, events, verbose, workers)
-
-
 # ----------------------------------------------------------------------------------------
 # The Principled-parity job
 
@@ -201,7 +185,8 @@ def parity_hdris(names: str) -> list:
 
 
 def parity_runs(base: MatrixSettings, hdris: list, name: str | None = None) -> list:
-    """(name, Cook-Torrance settings, Principled settings) per HDRI (run_parity)."""
+    """(name, Cook-Torrance settings, Principled settings) per HDRI (jobs/graph.py's
+    run_parity)."""
     jobs = []
     for hdri in hdris:
         ct = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="osl",
@@ -214,24 +199,6 @@ def parity_runs(base: MatrixSettings, hdris: list, name: str | None = None) -> l
                                        else "GGX"))
         jobs.append((name if name and len(hdris) == 1 else Path(hdri).stem, ct, pr))
     return jobs
-
-
-def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
-               events: Events | None = None, verbose: bool = False,
-               name: str | None = None, workers: int = 1) -> dict:
-    """With Smith G, Lambert diffuse, metallic 1, the Sun off and no sphere shadowing another,
-    the model is Principled BSDF's single-scatter GGX metal, so our reference integration and
-    Cycles' path tracer must agree up to noise: both rendered under each HDRI (and the base's
-    lights, if it has any) and compared, each into OUT/<HDRI stem>/, or OUT/<name>/ for a
-    single HDRI given a name (the lights file's stem). Returns the verdict, the report and
-    each run's comparison. The task graph of jobs/graph.py, run here."""
-    from . import graph
-    events = events or Events()
-    plan = graph.make_plan("parity", base, samples, hdris=hdris, name=name)
-    check_writable(out)
-    _forget_report(out)
-    graph.write_plan(out, plan, replace=True)
-    return graph.run_graph(plan, out, events, verbose, workers)
 
 
 # ----------------------------------------------------------------------------------------
