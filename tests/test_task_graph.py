@@ -287,3 +287,41 @@ def test_the_openjd_bundle_runs_end_to_end(tmp_path, single_process):
                            text=True, timeout=600, cwd=tmp_path, env=dict(os.environ))
         assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     _same_job(single_process, job)
+
+
+@pytest.mark.quick
+def test_the_flamenco_job_type_compiles_the_plan(tmp_path):
+    """Without a Flamenco Manager: the job compiler script run by Node.js against a stand-in
+    for Flamenco's ``author`` API (Task, Command, addCommand, addDependency, job.addTask)."""
+    node = shutil.which("node")
+    if not node:
+        pytest.skip("Node.js is not installed")
+    p = plan(tmp_path / "j", "--flamenco")
+    script = (tmp_path / "j" / "flamenco" / "ctlab-matrix.js").read_text()
+    harness = script + """
+const tasks = [];
+const author = globalThis.author;
+const job = { settings: {}, addTask: (t) => tasks.push(t) };
+for (const s of JOB_TYPE.settings) job.settings[s.key] = s.default;
+compileJob(job);
+console.log(JSON.stringify(tasks.map((t) => ({ name: t.name, commands: t.commands,
+                                               deps: t.deps.map((d) => d.name) }))));
+"""
+    stub = """globalThis.author = {
+  Task: (name, type) => ({ name, type, commands: [], deps: [],
+                           addCommand(c) { this.commands.push(c); },
+                           addDependency(t) { this.deps.push(t); } }),
+  Command: (name, params) => ({ name, params }) };
+"""
+    out = subprocess.run([node, "-e", stub + harness], capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 0, out.stderr
+    tasks = json.loads(out.stdout)
+    renders = jobgraph.render_tasks(p)
+    assert [t["name"] for t in tasks] == [f"render-{t['id']}" for t in renders] + ["merge"]
+    first = tasks[0]["commands"][0]
+    assert first["name"] == "exec" and first["params"]["exe"] == sys.executable
+    assert first["params"]["args"] == [str(ROOT / "scripts" / "ctlab.py"), "task",
+                                       str((tmp_path / "j").resolve()), renders[0]["id"]]
+    assert tasks[-1]["deps"] == [f"render-{t['id']}" for t in renders]
+    assert tasks[-1]["commands"][0]["params"]["args"][1] == "merge"

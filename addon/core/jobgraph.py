@@ -320,3 +320,73 @@ def write_openjd(job_dir: Path, plan: dict, repo_root: Path, python: str) -> Pat
     path = folder / "template.json"
     write_json(path, openjd_template(dict(plan, python=str(python))))
     return path
+
+
+# ----------------------------------------------------------------------------------------
+# Flamenco
+
+FLAMENCO_DIR = "flamenco"
+
+
+def flamenco_job_type(plan: dict, job_dir: Path, repo_root: Path, python: str) -> str:
+    """A Flamenco 3 job compiler script (JavaScript; https://flamenco.blender.org/usage/
+    job-types/) for this plan: its settings are the job folder, Cook-Torrance Lab's folder
+    and the Python (defaults: this machine's), and compileJob authors one ``exec`` task per
+    render task (``ctlab task JOB ID``) and a merge task that depends on all of them. The
+    task ids are the plan's: Flamenco scripts cannot read plan.json themselves."""
+    ids = [t["id"] for t in render_tasks(plan)]
+    digest = hashlib.sha256(canonical(ids).encode()).hexdigest()[:8]
+    setting = ('    {{ key: "{key}", type: "string", {sub}required: true, '
+               'default: {default}, description: {desc} }},')
+    settings = "\n".join(setting.format(key=k, sub=sub, default=json.dumps(str(v)),
+                                        desc=json.dumps(d))
+                         for k, sub, v, d in (
+                             ("job_dir", 'subtype: "dir_path", ', job_dir,
+                              "the job folder (plan.json)"),
+                             ("repo_root", 'subtype: "dir_path", ', repo_root,
+                              "Cook-Torrance Lab's folder (scripts/ctlab.py)"),
+                             ("python", 'subtype: "file_path", ', python,
+                              "a Python with bpy (Blender as a module)")))
+    return f"""// Flamenco job type for one planned Cook-Torrance Lab job, written by
+// `ctlab plan {plan['job']} --flamenco` (addon/core/jobgraph.py). Put it in the Manager's
+// scripts/ folder; the task ids below are the plan's.
+const JOB_TYPE = {{
+  label: {json.dumps(f"ctlab {plan['job']} {digest}")},
+  description: "Cook-Torrance Lab: render tasks, then the merge (report)",
+  settings: [
+{settings}
+  ],
+}};
+
+const TASK_IDS = {json.dumps(ids)};
+
+function compileJob(job) {{
+  const s = job.settings;
+  const ctlab = s.repo_root + "/scripts/ctlab.py";
+  const renders = [];
+  for (const id of TASK_IDS) {{
+    const task = author.Task("render-" + id, "misc");
+    task.addCommand(author.Command("exec", {{ exe: s.python,
+                                              args: [ctlab, "task", s.job_dir, id] }}));
+    job.addTask(task);
+    renders.push(task);
+  }}
+  const merge = author.Task("merge", "misc");
+  merge.addCommand(author.Command("exec", {{ exe: s.python,
+                                             args: [ctlab, "merge", s.job_dir] }}));
+  for (const task of renders) {{
+    merge.addDependency(task);
+  }}
+  job.addTask(merge);
+}}
+"""
+
+
+def write_flamenco(job_dir: Path, plan: dict, repo_root: Path, python: str) -> Path:
+    """JOB/flamenco/ctlab-<job>.js (flamenco_job_type)."""
+    folder = Path(job_dir) / FLAMENCO_DIR
+    folder.mkdir(exist_ok=True)
+    path = folder / f"ctlab-{plan['job']}.js"
+    from .files import write_text
+    write_text(path, flamenco_job_type(plan, Path(job_dir).absolute(), repo_root, python))
+    return path

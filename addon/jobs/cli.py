@@ -370,11 +370,12 @@ def cmd_plan(args) -> None:
     job, base, extra = job_inputs(args)
     out = check_path(args.out, "--out")
     plan = graph.make_plan(job, base, args.samples, **extra)
-    graph.write_plan(out, plan, openjd=args.openjd)
+    graph.write_plan(out, plan, openjd=args.openjd, flamenco=args.flamenco)
     renders = [t for t in plan["tasks"] if t["kind"] == "render"]
     say(f"planned the {job} job: {len(renders)} render tasks and a merge -> "
         f"{out / 'plan.json'}" + (f", {out / 'openjd' / 'template.json'}" if args.openjd
-                                  else ""))
+                                  else "")
+        + (f", {out / 'flamenco' / f'ctlab-{job}.js'}" if args.flamenco else ""))
     for t in plan["tasks"]:
         say(f"  {t['id']}  {t['kind']}" + (f"  {t['folder']}" if t["kind"] == "render"
                                             else f"  after {len(t['depends'])} tasks"))
@@ -491,6 +492,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--out", required=True, help="the job folder")
     pl.add_argument("--openjd", action="store_true",
                     help="also write an Open Job Description bundle, JOB/openjd/template.json")
+    pl.add_argument("--flamenco", action="store_true",
+                    help="also write a Flamenco job type, JOB/flamenco/ctlab-<job>.js")
     pl.add_argument("--parity", action="store_true", help="the Principled-parity job")
     pl.add_argument("--parity-hdris", default=",".join(pipeline.PARITY_HDRIS),
                     help="Blender's bundled HDRIs for the parity job (default: %(default)s)")

@@ -118,8 +118,10 @@ def make_plan(job: str, base: MatrixSettings, samples: int, **extra) -> dict:
     return jobgraph.make_plan(job, spec, env, tasks, merge_outputs(job, spec))
 
 
-def write_plan(job_dir: Path, plan: dict, openjd: bool = False, replace: bool = False) -> None:
-    """JOB/plan.json (and with ``openjd`` JOB/openjd/template.json). ``replace``: the job
+def write_plan(job_dir: Path, plan: dict, openjd: bool = False, replace: bool = False,
+               flamenco: bool = False) -> None:
+    """JOB/plan.json (with ``openjd`` JOB/openjd/template.json, with ``flamenco``
+    JOB/flamenco/ctlab-<job>.js). ``replace``: the job
     run in one process takes the folder over, as it always wrote over its renders."""
     check_writable(job_dir)
     if replace:
@@ -127,6 +129,8 @@ def write_plan(job_dir: Path, plan: dict, openjd: bool = False, replace: bool = 
     jobgraph.write_plan(job_dir, plan)
     if openjd:
         jobgraph.write_openjd(Path(job_dir).resolve(), plan, PACKAGE_ROOT, sys.executable)
+    if flamenco:
+        jobgraph.write_flamenco(Path(job_dir).resolve(), plan, PACKAGE_ROOT, sys.executable)
 
 
 # ----------------------------------------------------------------------------------------
