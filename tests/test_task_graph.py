@@ -226,18 +226,60 @@ def single_process(tmp_path_factory):
     return out
 
 
+def _leaves(data, key=""):
+    if isinstance(data, dict):
+        for k, v in data.items():
+            yield from _leaves(v, f"{key}/{k}")
+    elif isinstance(data, list):
+        for i, v in enumerate(data):
+            yield from _leaves(v, f"{key}/{i}")
+    else:
+        yield key, data
+
+
+# Cycles' path-traced Principled renders of this scene are not always bit-identical between
+# two runs of the same process with the same seed: 1 run in 7 of one `ctlab task` differed in
+# 33 of 2304 pixels, by at most 0.0035 (bpy 5.2.3; with PYTHONHASHSEED fixed too). The lab
+# renders (the OSL shader, the node group, the furnace) were identical in every run.
+PRINCIPLED_PIXELS, PRINCIPLED_DIFF = 0.03, 0.01
+
+
 def _same_job(a, b):
+    """The same renders (bit-identical, Principled's up to Cycles' own run-to-run noise, see
+    above), the same metrics (exactly, where no input differed) and the same layout."""
     assert renders(a) == renders(b) and len(renders(a)) == 13
+    differed = set()
     for folder in renders(a):
-        assert np.array_equal(read_image(a / folder / "render.exr"),
-                              read_image(b / folder / "render.exr")), folder
-    assert metrics(a) == metrics(b) and len(metrics(a)) == 9
+        x, y = read_image(a / folder / "render.exr"), read_image(b / folder / "render.exr")
+        if np.array_equal(x, y):
+            continue
+        shader = json.loads((a / folder / "scene.json").read_text())["shader"]
+        d = np.abs(x - y)
+        assert shader == "principled", folder
+        assert (d > 0).mean() < PRINCIPLED_PIXELS and d.max() < PRINCIPLED_DIFF, \
+            (folder, (d > 0).mean(), d.max())
+        differed.add(folder)
+    from addon.jobs.pipeline import MATRIX_COMPARISONS
+    ma, mb = metrics(a), metrics(b)
+    assert set(ma) == set(mb) and len(ma) == 9
+    for cmp_dir, x, y in MATRIX_COMPARISONS:
+        if differed & {x, y}:
+            la, lb = dict(_leaves(ma[cmp_dir])), dict(_leaves(mb[cmp_dir]))
+            assert la.keys() == lb.keys()
+            for k, v in la.items():
+                if isinstance(v, float):
+                    assert lb[k] == pytest.approx(v, rel=0.05, abs=0.02), (cmp_dir, k)
+                else:
+                    assert lb[k] == v, (cmp_dir, k)
+        else:
+            assert ma[cmp_dir] == mb[cmp_dir], cmp_dir
     for rel in ("report.html", "plots"):
         assert (b / rel).exists(), rel
     layout = {str(p.relative_to(a)) for p in a.rglob("*") if ".tasks" not in p.parts
               and "openjd" not in p.parts}
     assert layout == {str(p.relative_to(b)) for p in b.rglob("*") if ".tasks" not in p.parts
                       and "openjd" not in p.parts}
+    return differed
 
 
 def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path,

@@ -195,7 +195,7 @@ def _scene(job_dir: Path, folder: str) -> dict:
     return json.loads((Path(job_dir) / folder / "scene.json").read_text(encoding="utf-8"))
 
 
-def merge(job_dir: Path, events=None, verbose: bool = False, step: int | None = None,
+def merge(job_dir: Path, events=None, verbose: bool = False,
           steps: int | None = None) -> dict:
     """``ctlab merge JOB``: every render task checked (one line naming those to re-run),
     then the comparisons, plots and report from the job folder alone, under the merge lock."""
@@ -206,11 +206,11 @@ def merge(job_dir: Path, events=None, verbose: bool = False, step: int | None = 
         jobgraph.check_complete(job_dir, plan)
         base = settings_from_dict(plan["spec"]["base"])
         if plan["job"] == "matrix":
-            return _merge_matrix(job_dir, plan, base, events, verbose, step, steps)
-        return _merge_parity(job_dir, plan, events, step, steps)
+            return _merge_matrix(job_dir, plan, base, events, verbose, steps)
+        return _merge_parity(job_dir, plan, events, steps)
 
 
-def _merge_matrix(out, plan, base, events, verbose, step, steps) -> dict:
+def _merge_matrix(out, plan, base, events, verbose, steps) -> dict:
     steps = steps or 2
     labels = matrix_labels()
     folders = [t["folder"] for t in jobgraph.render_tasks(plan)]
@@ -240,7 +240,7 @@ def _merge_matrix(out, plan, base, events, verbose, step, steps) -> dict:
     return {"job": "matrix", "report": report, "comparisons": results}
 
 
-def _merge_parity(out, plan, events, step, steps) -> dict:
+def _merge_parity(out, plan, events, steps) -> dict:
     steps = steps or 1
     names = list(dict.fromkeys(t["folder"].split("/")[0] for t in jobgraph.render_tasks(plan)))
     entries = []
