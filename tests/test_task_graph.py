@@ -237,26 +237,27 @@ def _leaves(data, key=""):
         yield key, data
 
 
-# Cycles' path-traced Principled renders of this scene are not always bit-identical between
-# two runs of the same process with the same seed: 1 run in 7 of one `ctlab task` differed in
-# 33 of 2304 pixels, by at most 0.0035 (bpy 5.2.3; with PYTHONHASHSEED fixed too). The lab
-# renders (the OSL shader, the node group, the furnace) were identical in every run.
-PRINCIPLED_PIXELS, PRINCIPLED_DIFF = 0.03, 0.01
+# Cycles' renders of this scene are not always bit-identical between two runs with the same
+# seed, in this project's pipeline or not: one fresh `ctlab task` of the principled folder in 7
+# differed in 33 of 2304 pixels, by at most 0.0035 (bpy 5.2.3; PYTHONHASHSEED fixed as well),
+# and in the end-to-end runs an OSL render differed in 33 pixels by 5e-4 and a furnace render
+# in 225 of 24576 by 2e-5, in processes that were each given the same settings. Every other
+# render was identical. A differing render is held to that size here.
+DIFFERING_PIXELS, DIFFERENCE = 0.03, 0.01
 
 
 def _same_job(a, b):
-    """The same renders (bit-identical, Principled's up to Cycles' own run-to-run noise, see
-    above), the same metrics (exactly, where no input differed) and the same layout."""
+    """The same renders (bit-identical, or up to Cycles' own run-to-run differences, see
+    above), the same metrics (exactly, where no input differed) and the same layout.
+    Returns the render folders that differed."""
     assert renders(a) == renders(b) and len(renders(a)) == 13
     differed = set()
     for folder in renders(a):
         x, y = read_image(a / folder / "render.exr"), read_image(b / folder / "render.exr")
         if np.array_equal(x, y):
             continue
-        shader = json.loads((a / folder / "scene.json").read_text())["shader"]
         d = np.abs(x - y)
-        assert shader == "principled", folder
-        assert (d > 0).mean() < PRINCIPLED_PIXELS and d.max() < PRINCIPLED_DIFF, \
+        assert (d > 0).mean() < DIFFERING_PIXELS and d.max() < DIFFERENCE, \
             (folder, (d > 0).mean(), d.max())
         differed.add(folder)
     from addon.jobs.pipeline import MATRIX_COMPARISONS
