@@ -1,7 +1,8 @@
-"""The pipeline: rendering views of the sphere matrix, the main comparison job, the Principled
-parity job and the bake, as functions that take validated settings (core.settings) and report
-through ``Events``. The command line, the background job, the benchmark and the tests all run
-these; none of them parses another's output.
+"""The pipeline: rendering views of the sphere matrix, what the main comparison job and the
+Principled-parity job render and compare (run as task graphs by jobs/graph.py), the BRDF plot
+and the bake, as functions that take validated settings (core.settings) and report through
+``Events``. The command line, the background job, the benchmark and the tests all run these;
+none of them parses another's output.
 
 A job reports ``progress(step, total, message)`` before each step and ``note(message)`` within
 one, and polls ``cancelled()`` between steps: when it answers True the job stops with
