@@ -86,6 +86,20 @@ def test_a_plan_names_each_task_by_its_content(tmp_path):
 
 
 @pytest.mark.quick
+def test_the_parity_job_plans_two_tasks_per_hdri(tmp_path):
+    job = tmp_path / "p"
+    assert cli.main(["plan", "parity", "--grid", "3x1", "--size", "72", "--samples", "8",
+                     "--parity-hdris", "forest,studio", "--out", str(job)]) == 0
+    p = jobgraph.read_plan(job)
+    assert p["job"] == "parity" and [t["folder"] for t in jobgraph.render_tasks(p)] == [
+        "forest/cook_torrance", "forest/principled", "studio/cook_torrance",
+        "studio/principled"]
+    hashes = {t["folder"].split("/")[0]: t["inputs"]["hdri"] for t in jobgraph.render_tasks(p)}
+    assert hashes["forest"] != hashes["studio"]
+    assert p["tasks"][-1]["kind"] == "merge" and len(p["tasks"][-1]["depends"]) == 4
+
+
+@pytest.mark.quick
 def test_the_openjd_bundle_passes_openjd_check(tmp_path):
     if not OPENJD:
         pytest.skip("openjd-cli is not installed (pip install openjd-cli)")
