@@ -251,13 +251,16 @@ def _leaves(data, key=""):
         yield key, data
 
 
-# Cycles' renders of this scene are not always bit-identical between two runs with the same
-# seed, in this project's pipeline or not: one fresh `ctlab task` of the principled folder in 7
-# differed in 33 of 2304 pixels, by at most 0.0035 (bpy 5.2.3; PYTHONHASHSEED fixed as well),
-# and in the end-to-end runs an OSL render differed in 33 pixels by 5e-4 and a furnace render
-# in 225 of 24576 by 2e-5, in processes that were each given the same settings. Every other
-# render was identical. A differing render is held to that size here.
-DIFFERING_PIXELS, DIFFERENCE = 0.03, 0.01
+# Cycles' renders of this scene are not always bit-identical between two processes given the
+# same settings and seed, in this project's pipeline or not. On bpy 5.2.3 most are: one fresh
+# `ctlab task` of the principled folder in 7 differed, in 33 of 2304 pixels by at most 0.0035
+# (PYTHONHASHSEED fixed as well), and in the end-to-end runs an OSL render differed in 33
+# pixels by 5e-4 and a furnace render in 225 of 24576 by 2e-5. On bpy 4.5.15 every render of
+# every process differed from every other's in 2 to 10% of its pixels, by at most 2.6e-4 on
+# values up to 18 (also between two job folders both run task by task). A differing render
+# is held to a difference far below any change of the settings here: 1e-3 of the image's
+# peak.
+DIFFERENCE = 1e-3
 
 
 def _same_job(a, b):
@@ -271,7 +274,7 @@ def _same_job(a, b):
         if np.array_equal(x, y):
             continue
         d = np.abs(x - y)
-        assert (d > 0).mean() < DIFFERING_PIXELS and d.max() < DIFFERENCE, \
+        assert d.max() < DIFFERENCE * max(1.0, float(np.abs(x).max())), \
             (folder, (d > 0).mean(), d.max())
         differed.add(folder)
     from addon.jobs.pipeline import MATRIX_COMPARISONS
