@@ -385,3 +385,18 @@ console.log(JSON.stringify(tasks.map((t) => ({ name: t.name, commands: t.command
                                        str((tmp_path / "j").resolve()), renders[0]["id"]]
     assert tasks[-1]["deps"] == [f"render-{t['id']}" for t in renders]
     assert tasks[-1]["commands"][0]["params"]["args"][1] == "merge"
+
+
+@pytest.mark.quick
+def test_a_task_whose_hdri_is_gone_says_so(tmp_path, capsys):
+    hdri = tmp_path / "sky.exr"
+    from addon.core.hdri import write_float_exr
+    write_float_exr(hdri, np.ones((32, 64, 3), dtype=np.float32))
+    job = tmp_path / "j"
+    p = plan(job, "--hdri", str(hdri))
+    hdri.unlink()
+    capsys.readouterr()
+    t = jobgraph.render_tasks(p)[0]
+    assert cli.main(["task", str(job), t["id"]]) == cli.EXIT_BAD_INPUT
+    assert f"HDRI not found: {hdri}" in error_line(capsys)
+    assert not (job / t["folder"]).exists()

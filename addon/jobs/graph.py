@@ -78,7 +78,11 @@ _HASHES: dict = {}
 
 
 def _hdri_hash(path: Path) -> str:
-    st = path.stat()
+    try:
+        st = path.stat()
+    except OSError:
+        raise UserError(f"HDRI not found: {path} (the plan names it; on another machine it "
+                        "must be at the same path, or plan the job there)") from None
     key = (str(path), st.st_size, st.st_mtime_ns)
     if key not in _HASHES:
         _HASHES[key] = file_hash(path)
