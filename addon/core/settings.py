@@ -7,6 +7,7 @@ bottom, the grid in the XZ plane seen by an orthographic camera looking along +Y
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from dataclasses import dataclass, field
 
@@ -192,3 +193,35 @@ def light_record(light) -> dict:
               "use_shadow": light.use_shadow}
     record.update({k: light.get(k) for k in PER_TYPE[light.type]})
     return record
+
+
+# ----------------------------------------------------------------------------------------
+# Settings as data (a job plan stores them: core/jobgraph.py)
+
+_TUPLE_FIELDS = ("albedo", "sun_to_light", "sun_color")
+_LIGHT_TUPLES = ("location", "rotation_euler", "scale", "color")
+
+
+def settings_to_dict(s: MatrixSettings) -> dict:
+    """The settings as plain JSON data (settings_from_dict reads them back, validated)."""
+    data = {f.name: getattr(s, f.name) for f in dataclasses.fields(s)}
+    data["model"] = dict(vars(s.model))
+    data["lights"] = [dataclasses.asdict(light) for light in s.lights]
+    return json.loads(json.dumps(data))
+
+
+def settings_from_dict(data: dict) -> MatrixSettings:
+    """Settings written by settings_to_dict; a field this version does not know, or a bad
+    value, is a UserError naming it."""
+    from .lights import Light
+    try:
+        d = dict(data)
+        model = ModelOptions(**d.pop("model"))
+        lights = tuple(Light(**dict(light, **{k: tuple(light[k]) for k in _LIGHT_TUPLES
+                                              if k in light}))
+                       for light in d.pop("lights", ()))
+        d.update({k: tuple(d[k]) for k in _TUPLE_FIELDS if k in d})
+        return MatrixSettings(model=model, lights=lights, **d)
+    except (TypeError, KeyError, AttributeError) as exc:
+        raise UserError(f"settings written by another version of ctlab ({exc}); plan the "
+                        "job again") from None

@@ -1,6 +1,7 @@
-"""The command line: ``render``, ``compare``, ``bake``, ``matrix``, ``plot`` and ``scene``
-(scripts/ctlab.py is the entry). It maps arguments onto settings (core.settings) and runs the
-pipeline (jobs/pipeline.py; ``scene``: jobs/scene_job.py).
+"""The command line: ``render``, ``compare``, ``bake``, ``matrix``, ``plot``, ``scene``, and
+the batch jobs as task graphs: ``plan``, ``task``, ``merge`` (jobs/graph.py); scripts/ctlab.py
+is the entry. It maps arguments onto settings (core.settings) and runs the pipeline
+(jobs/pipeline.py; ``scene``: jobs/scene_job.py).
 
 Bad input gets a one-line message naming the problem and exit status 2, and nothing is
 written. Blender's own per-tile output goes to a log file in the system temp folder; the
@@ -318,13 +319,35 @@ def cmd_bake(args) -> None:
     say(f"done: {folder}: {names}")
 
 
-def cmd_matrix(args) -> None:
-    """The main job (or, with --parity, the Principled-parity check)."""
-    if args.parity:
-        return cmd_parity(args)
+def job_inputs(args) -> tuple:
+    """("matrix" or "parity", base settings, the parity job's HDRIs and name) from the
+    matrix options, validated."""
     base = settings_from(args, "osl", "full")
-    out = check_path("out/matrix" if args.out is None else args.out, "--out")
-    result = pipeline.run_matrix(base, args.samples, out, events(), args.verbose)
+    if not args.parity:
+        return "matrix", base, {}
+    if base.lights:         # one run under the lights, with --hdri or the first parity HDRI
+        hdris = [Path(args.hdri)] if args.hdri else \
+            pipeline.parity_hdris(args.parity_hdris)[:1]
+        name = Path(base.lights_file).stem
+    else:
+        hdris = [Path(args.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
+        name = None
+    return "parity", base, {"hdris": hdris, "name": name}
+
+
+def check_workers(args) -> int:
+    workers = getattr(args, "workers", 1)
+    if not 1 <= workers <= 256:
+        raise UserError(f"--workers {workers} out of range; use 1 to 256")
+    return workers
+
+
+def say_done(result: dict) -> None:
+    """The last line of a matrix or parity job (run here, or merged from its tasks)."""
+    if result.get("job") == "parity":
+        say(f"done: parity {'holds' if result['holds'] else 'FAILS'} (every sphere's mean "
+            f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}")
+        return
     de = {k: r["overall"]["ciede2000_mean"] for k, r in result["comparisons"].items()}
     psnr = result["comparisons"]["compare"]["overall"]["psnr_db"]
     say(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
@@ -334,22 +357,64 @@ def cmd_matrix(args) -> None:
         f"node group against OSL {de['compare_nodes']:.3f}; open {result['report']}")
 
 
+def cmd_matrix(args) -> None:
+    """The main job (or, with --parity, the Principled-parity check)."""
+    if args.parity:
+        return cmd_parity(args)
+    workers = check_workers(args)
+    _, base, _ = job_inputs(args)
+    out = check_path("out/matrix" if args.out is None else args.out, "--out")
+    from . import graph
+    result = graph.run_matrix(base, args.samples, out, events(), args.verbose, workers)
+    say_done(dict(result, job="matrix"))
+
+
 def cmd_parity(args) -> None:
-    """The Principled-parity check (pipeline.run_parity) for each HDRI of --parity-hdris, or
+    """The Principled-parity check (graph.run_parity) for each HDRI of --parity-hdris, or
     for --hdri."""
-    base = settings_from(args, "osl", "full")
-    if base.lights:         # one run under the lights, with --hdri or the first parity HDRI
-        hdris = [Path(args.hdri)] if args.hdri else \
-            pipeline.parity_hdris(args.parity_hdris)[:1]
-        name = Path(base.lights_file).stem
-    else:
-        hdris = [Path(args.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
-        name = None
+    workers = check_workers(args)
+    _, base, extra = job_inputs(args)
     out = check_path("out/parity" if args.out is None else args.out, "--out")
-    result = pipeline.run_parity(base, hdris, args.samples, out, events(), args.verbose,
-                                 name=name)
-    say(f"done: parity {'holds' if result['holds'] else 'FAILS'} (every sphere's mean "
-        f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}")
+    from . import graph
+    result = graph.run_parity(base, extra["hdris"], args.samples, out, events(),
+                                 args.verbose, name=extra["name"], workers=workers)
+    say_done(dict(result, job="parity"))
+
+
+def cmd_plan(args) -> None:
+    """``ctlab plan matrix [options] --out JOB``: the job's task graph (jobs/graph.py)."""
+    from . import graph
+    if args.job == "parity":
+        args.parity = True
+    fill_defaults(args, PARITY_DEFAULTS if args.parity else DEFAULTS)
+    job, base, extra = job_inputs(args)
+    out = check_path(args.out, "--out")
+    plan = graph.make_plan(job, base, args.samples, **extra)
+    graph.write_plan(out, plan, openjd=args.openjd, flamenco=args.flamenco)
+    renders = [t for t in plan["tasks"] if t["kind"] == "render"]
+    say(f"planned the {job} job: {len(renders)} render tasks and a merge -> "
+        f"{out / 'plan.json'}" + (f", {out / 'openjd' / 'template.json'}" if args.openjd
+                                  else "")
+        + (f", {out / 'flamenco' / f'ctlab-{job}.js'}" if args.flamenco else ""))
+    for t in plan["tasks"]:
+        say(f"  {t['id']}  {t['kind']}" + (f"  {t['folder']}" if t["kind"] == "render"
+                                            else f"  after {len(t['depends'])} tasks"))
+
+
+def cmd_task(args) -> None:
+    """``ctlab task JOB ID``: one task of a plan (a finished one does nothing)."""
+    from . import graph
+    job = Path(os.path.normpath(check_path(args.job_dir, "job folder")))
+    result = graph.run_task(job, args.task_id, events(), args.verbose)
+    if result["ran"] and "scene" in result:
+        say(f"done: task {args.task_id} in {result['seconds']:.1f} s")
+
+
+def cmd_merge(args) -> None:
+    """``ctlab merge JOB``: the comparisons, plots and report from the job folder."""
+    from . import graph
+    job = Path(os.path.normpath(check_path(args.job_dir, "job folder")))
+    say_done(graph.merge(job, events(), args.verbose))
 
 
 def plot_settings_from(args):
@@ -436,8 +501,34 @@ def build_parser() -> argparse.ArgumentParser:
                         "GGX, for each of --parity-hdris (or --hdri)")
     m.add_argument("--parity-hdris", default=",".join(pipeline.PARITY_HDRIS),
                    help="Blender's bundled HDRIs for --parity (default: %(default)s)")
+    m.add_argument("--workers", type=int, default=1,
+                   help="render tasks as this many local processes (default 1: in this one)")
     add_scene_arguments(m)
     m.set_defaults(func=cmd_matrix)
+    pl = sub.add_parser("plan", help="write a batch job's task graph (JOB/plan.json) for "
+                                     "'ctlab task' and 'ctlab merge', or a render farm")
+    pl.add_argument("job", choices=("matrix", "parity"),
+                    help="matrix (the main job; --parity for the parity job) or parity")
+    pl.add_argument("--out", required=True, help="the job folder")
+    pl.add_argument("--openjd", action="store_true",
+                    help="also write an Open Job Description bundle, JOB/openjd/template.json")
+    pl.add_argument("--flamenco", action="store_true",
+                    help="also write a Flamenco job type, JOB/flamenco/ctlab-<job>.js")
+    pl.add_argument("--parity", action="store_true", help="the Principled-parity job")
+    pl.add_argument("--parity-hdris", default=",".join(pipeline.PARITY_HDRIS),
+                    help="Blender's bundled HDRIs for the parity job (default: %(default)s)")
+    add_scene_arguments(pl)
+    pl.set_defaults(func=cmd_plan)
+    t = sub.add_parser("task", help="run one task of a planned job (done already: nothing)")
+    t.add_argument("job_dir", help="the job folder (plan.json)")
+    t.add_argument("task_id", help="a task id of plan.json")
+    t.add_argument("--verbose", action="store_true", help="show Blender's own output")
+    t.set_defaults(func=cmd_task)
+    mg = sub.add_parser("merge", help="compare, plot and write the report of a planned job "
+                                      "whose render tasks are done")
+    mg.add_argument("job_dir", help="the job folder (plan.json)")
+    mg.add_argument("--verbose", action="store_true", help="show Blender's own output")
+    mg.set_defaults(func=cmd_merge)
     p = sub.add_parser("plot", help="the BRDF plotted from the model's own code: the "
                                     "theta_h x theta_d slice, lobes and directional albedo")
     p.add_argument("--out", required=True, help="output folder")
@@ -504,7 +595,7 @@ def fill_defaults(args, defaults: dict) -> None:
 
 VALUE_FLAGS = {a.flag for a in SCENE_ARGS if not a.flag_only} | {
     "--out", "--view", "--engine", "--shader", "--parity-hdris", "--metallic", "--smoothness",
-    "--compare", "--camera", "--seed"}
+    "--compare", "--camera", "--seed", "--workers"}
 
 
 def main(argv_=None) -> int:
@@ -515,7 +606,8 @@ def main(argv_=None) -> int:
             args = parser.parse_args(join_negative_values(argv_, VALUE_FLAGS))
         except SystemExit as exc:               # --help
             return EXIT_BAD_INPUT if exc.code else 0
-        fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
+        if args.command != "plan":
+            fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
         args.func(args)
     except UserError as exc:
         print(f"ctlab: error: {exc}", file=sys.stderr, flush=True)

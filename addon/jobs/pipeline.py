@@ -1,7 +1,8 @@
-"""The pipeline: rendering views of the sphere matrix, the main comparison job, the Principled
-parity job and the bake, as functions that take validated settings (core.settings) and report
-through ``Events``. The command line, the background job, the benchmark and the tests all run
-these; none of them parses another's output.
+"""The pipeline: rendering views of the sphere matrix, what the main comparison job and the
+Principled-parity job render and compare (run as task graphs by jobs/graph.py), the BRDF plot
+and the bake, as functions that take validated settings (core.settings) and report through
+``Events``. The command line, the background job, the benchmark and the tests all run these;
+none of them parses another's output.
 
 A job reports ``progress(step, total, message)`` before each step and ``note(message)`` within
 one, and polls ``cancelled()`` between steps: when it answers True the job stops with
@@ -20,11 +21,8 @@ import bpy
 from ..blender import model_node, renderer, scene_builder
 from ..blender.paths import bundled_hdri, resolve_hdri
 from ..core import brdf_plot, energy, ibl_bake
-from ..core.compare import compare, read_image
 from ..core.errors import Cancelled
 from ..core.files import check_writable, refuse_overwrite
-from ..core.hdri import load_hdri
-from ..core.report import write_parity_report, write_report
 from ..core.model import BAKED_IBL_MODES, G_MODELS
 from ..core.settings import MatrixSettings, with_overrides
 
@@ -165,53 +163,6 @@ def matrix_settings(base: MatrixSettings) -> dict:
     return settings
 
 
-def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | None = None,
-               verbose: bool = False) -> dict:
-    """The main job: the OSL shader against Principled BSDF, the baked IBL modes against the
-    reference integration, the node group against the OSL shader, the attribution and the
-    white furnace, compared cell by cell, with report.html. Returns the comparisons."""
-    events = events or Events()
-    load_hdri(resolve_hdri(base.hdri))
-    settings = matrix_settings(base)
-    check_writable(out)
-    _forget_report(out)
-    steps = len(settings) + 2
-    timings, scenes = {}, {}
-    labels = {folder: label for folder, label, *_ in MATRIX_RENDERS}
-    labels.update({folder: f"White furnace, {furnace_label(g, e)}"
-                   for folder, g, e in FURNACE_RENDERS})
-    for i, (folder, s) in enumerate(settings.items()):
-        events.check()
-        events.progress(i + 1, steps, f"{labels[folder]}: grid {s.rows}x{s.cols}, "
-                                      f"{s.width}x{s.height} px, {samples} samples")
-        scenes[folder] = render_one(s, out / folder, samples, verbose=verbose, events=events)
-        timings[labels[folder]] = scenes[folder]["render_seconds"]
-        events.note(f"{timings[labels[folder]]:.1f} s")
-    events.check()
-    events.progress(steps - 1, steps, "comparing; the BRDF plots")
-    results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
-               for cmp_dir, a, b in MATRIX_COMPARISONS}
-    furnace = {furnace_label(g, e): energy.directional_albedo(
-        read_image(out / folder / "render.exr"), scenes[folder])
-        for folder, g, e in FURNACE_RENDERS}
-    plots = []
-    for name, label, plot in report_plots(base):
-        events.check()
-        events.note(f"BRDF plot: {label}")
-        # the plot's own steps are notes here; a cancel stops it between its renders
-        inner = Events(note=_nothing, cancelled=events.cancelled)
-        plots.append((label, f"plots/{name}", run_plot(plot, out / "plots" / name, inner,
-                                                        verbose)))
-    events.progress(steps, steps, "writing the report")
-    report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
-                                for cmp_dir, a, b in MATRIX_COMPARISONS[:5]],
-                          scenes["cook_torrance"], timings,
-                          attribution=[(step[1], results[step[0]], *step[2:])
-                                       for step in ATTRIBUTION],
-                          furnace=furnace, plots=plots)
-    return {"report": report, "comparisons": results}
-
-
 # ----------------------------------------------------------------------------------------
 # The Principled-parity job
 
@@ -235,19 +186,11 @@ def parity_hdris(names: str) -> list:
     return [bundled_hdri(n) for n in chosen]
 
 
-def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
-               events: Events | None = None, verbose: bool = False,
-               name: str | None = None) -> dict:
-    """With Smith G, Lambert diffuse, metallic 1, the Sun off and no sphere shadowing another,
-    the model is Principled BSDF's single-scatter GGX metal, so our reference integration and
-    Cycles' path tracer must agree up to noise: both rendered under each HDRI (and the base's
-    lights, if it has any) and compared, each into OUT/<HDRI stem>/, or OUT/<name>/ for a
-    single HDRI given a name (the lights file's stem). Returns the verdict, the report and
-    each run's comparison."""
-    events = events or Events()
+def parity_runs(base: MatrixSettings, hdris: list, name: str | None = None) -> list:
+    """(name, Cook-Torrance settings, Principled settings) per HDRI (jobs/graph.py's
+    run_parity)."""
     jobs = []
     for hdri in hdris:
-        load_hdri(hdri)
         ct = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="osl",
                                        ibl="reference", view="full"))
         # with the model's energy compensated, against Principled's own multiple scattering
@@ -257,29 +200,7 @@ def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
                                        principled_distribution="MULTI_GGX" if multiple
                                        else "GGX"))
         jobs.append((name if name and len(hdris) == 1 else Path(hdri).stem, ct, pr))
-    check_writable(out)
-    _forget_report(out)
-    steps, step, entries = 2 * len(jobs) + 1, 0, []
-    for name, ct, pr in jobs:
-        scenes = {}
-        for folder, s in (("cook_torrance", ct), ("principled", pr)):
-            events.check()
-            step += 1
-            events.progress(step, steps, f"{name}: {folder}, grid {s.rows}x{s.cols}, "
-                                         f"{s.width} px, {samples} samples")
-            scenes[folder] = render_one(s, out / name / folder, samples, verbose=verbose,
-                                        events=events)
-        result = compare(out / name / "cook_torrance", out / name / "principled",
-                         out / name / "compare")
-        worst = max(c["ciede2000_mean"] for c in result["cells"])
-        events.note(f"{name}: mean CIEDE2000 {result['overall']['ciede2000_mean']:.2f}, "
-                    f"worst sphere {worst:.2f} (bound {PARITY_BOUND})")
-        entries.append((name, result, scenes["cook_torrance"]))
-    events.progress(steps, steps, "writing the report")
-    report = write_parity_report(out, entries, PARITY_BOUND)
-    holds = all(max(c["ciede2000_mean"] for c in r["cells"]) <= PARITY_BOUND
-                for _, r, _ in entries)
-    return {"holds": holds, "report": report, "comparisons": {n: r for n, r, _ in entries}}
+    return jobs
 
 
 # ----------------------------------------------------------------------------------------

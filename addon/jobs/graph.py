@@ -1,0 +1,382 @@
+"""The batch jobs (the main matrix job, the Principled-parity job) as task graphs
+(core/jobgraph.py): one render task per render folder, then a merge that compares, plots and
+writes the report reading only the job folder. ``ctlab plan`` writes the graph, ``ctlab
+task`` runs one task, ``ctlab merge`` the merge; ``ctlab matrix`` runs the same graph in
+this process (``run_graph``), or its render tasks as ``--workers N`` local processes.
+
+A task rebuilds its settings from the plan's spec with this version's code and checks that
+they give its id again (core.jobgraph.content_id): a plan from another version, or edited
+settings, is refused in one line rather than rendered into the wrong folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import bpy
+
+from . import pipeline
+from ..blender import renderer
+from ..blender.paths import resolve_hdri
+from ..core import energy, ibl_bake, jobgraph
+from ..core.compare import compare, read_image
+from ..core.errors import Cancelled, UserError
+from ..core.files import PACKAGE_ROOT, check_writable
+from ..core.hdri import file_hash, load_hdri
+from ..core.report import write_parity_report, write_report
+from ..core.settings import MatrixSettings, settings_from_dict, settings_to_dict
+
+CTLAB_SCRIPT = PACKAGE_ROOT / "scripts" / "ctlab.py"
+JOBS = ("matrix", "parity")
+
+
+def ctlab_version() -> str:
+    try:
+        with open(PACKAGE_ROOT / "blender_manifest.toml", "rb") as f:
+            return str(tomllib.load(f).get("version", "?"))
+    except (OSError, tomllib.TOMLDecodeError):
+        return "?"
+
+
+def environment() -> dict:
+    """What every task id includes besides its settings: the versions that change a render."""
+    return {"ctlab": ctlab_version(), "ibl_tables": ibl_bake.VERSION,
+            "plan": jobgraph.PLAN_VERSION, "blender": bpy.app.version_string}
+
+
+# ----------------------------------------------------------------------------------------
+# The jobs' render folders, from their spec
+
+def matrix_labels() -> dict:
+    labels = {folder: label for folder, label, *_ in pipeline.MATRIX_RENDERS}
+    labels.update({folder: f"White furnace, {pipeline.furnace_label(g, e)}"
+                   for folder, g, e in pipeline.FURNACE_RENDERS})
+    return labels
+
+
+def renders_of(job: str, spec: dict) -> dict:
+    """{folder: settings} of a job's render tasks, in the order the job runs them."""
+    base = settings_from_dict(spec["base"])
+    if job == "matrix":
+        return pipeline.matrix_settings(base)
+    if job == "parity":
+        out = {}
+        for name, ct, pr in pipeline.parity_runs(base, [Path(h) for h in spec["hdris"]],
+                                                 spec.get("name")):
+            out[f"{name}/cook_torrance"], out[f"{name}/principled"] = ct, pr
+        return out
+    raise UserError(f"unknown job {job!r} in the plan; this ctlab plans: {', '.join(JOBS)}")
+
+
+_HASHES: dict = {}
+
+
+def _hdri_hash(path: Path) -> str:
+    try:
+        st = path.stat()
+    except OSError:
+        raise UserError(f"HDRI not found: {path} (the plan names it; on another machine it "
+                        "must be at the same path, or plan the job there)") from None
+    key = (str(path), st.st_size, st.st_mtime_ns)
+    if key not in _HASHES:
+        _HASHES[key] = file_hash(path)
+    return _HASHES[key]
+
+
+def task_content(settings: MatrixSettings, samples: int, env: dict) -> dict:
+    """What a render task's id is derived from: its settings with the HDRI's path replaced
+    by its content hash (a farm may see it elsewhere), the samples and the versions."""
+    data = settings_to_dict(settings)
+    hdri = resolve_hdri(settings.hdri)
+    data["hdri"] = ""
+    data.pop("lights_file", None)
+    return {"settings": data, "samples": samples, "environment": env,
+            "inputs": {"hdri": _hdri_hash(hdri)}}
+
+
+def merge_outputs(job: str, spec: dict) -> tuple:
+    if job == "matrix":
+        return ("report.html",) + tuple(f"{c}/metrics.json" for c, *_ in
+                                        pipeline.MATRIX_COMPARISONS)
+    return ("report.html",)
+
+
+def make_plan(job: str, base: MatrixSettings, samples: int, **extra) -> dict:
+    """The job's plan: its spec (base settings, samples, the parity HDRIs), a render task
+    per folder, and the merge."""
+    spec = {"base": settings_to_dict(base), "samples": samples}
+    if job == "parity":
+        spec.update(hdris=[str(h) for h in extra["hdris"]], name=extra.get("name"))
+    env = environment()
+    for path in {resolve_hdri(s.hdri) for s in renders_of(job, spec).values()}:
+        load_hdri(path)                          # every input checked before anything
+    tasks = [jobgraph.render_task(folder, task_content(s, samples, env),
+                                  renderer.OUTPUT_FILES)
+             for folder, s in renders_of(job, spec).items()]
+    return jobgraph.make_plan(job, spec, env, tasks, merge_outputs(job, spec))
+
+
+def write_plan(job_dir: Path, plan: dict, openjd: bool = False, replace: bool = False,
+               flamenco: bool = False) -> None:
+    """JOB/plan.json (with ``openjd`` JOB/openjd/template.json, with ``flamenco``
+    JOB/flamenco/ctlab-<job>.js). ``replace``: the job
+    run in one process takes the folder over, as it always wrote over its renders."""
+    check_writable(job_dir)
+    if replace:
+        jobgraph.plan_path(job_dir).unlink(missing_ok=True)
+    jobgraph.write_plan(job_dir, plan)
+    if openjd:
+        jobgraph.write_openjd(Path(job_dir).resolve(), plan, PACKAGE_ROOT, sys.executable)
+    if flamenco:
+        jobgraph.write_flamenco(Path(job_dir).resolve(), plan, PACKAGE_ROOT, sys.executable)
+
+
+# ----------------------------------------------------------------------------------------
+# One task
+
+def _checked(job_dir: Path, plan: dict, task: dict) -> MatrixSettings:
+    """The task's settings rebuilt by this version; its id must come out the same."""
+    renders = renders_of(plan["job"], plan["spec"])
+    s = renders.get(task["folder"])
+    if s is None or jobgraph.content_id(task["folder"], task_content(
+            s, plan["spec"]["samples"], environment())) != task["id"]:
+        raise UserError(f"task {task['id']} was planned by another version or with other "
+                        f"settings (ctlab {plan.get('environment', {}).get('ctlab')}, Blender "
+                        f"{plan.get('environment', {}).get('blender')}); plan the job again "
+                        "into an empty folder")
+    return s
+
+
+def process_age() -> float | None:
+    """Seconds since this process started (Linux /proc), or None: a task's start-up cost
+    (Python, bpy) is its age when the task begins."""
+    try:
+        start = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return round(uptime - start / os.sysconf("SC_CLK_TCK"), 3)
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def run_task(job_dir: Path, task_id: str, events=None, verbose: bool = False) -> dict:
+    """``ctlab task JOB ID``: render one task into its folder and mark it done; a task done
+    already does nothing. Returns {"ran": bool, "seconds": float}."""
+    events = events or pipeline.Events()
+    job_dir = Path(job_dir)
+    plan = jobgraph.read_plan(job_dir)
+    task = jobgraph.find_task(plan, task_id)
+    if task["kind"] == "merge":
+        merge(job_dir, events, verbose)
+        return {"ran": True, "seconds": 0.0}
+    s = _checked(job_dir, plan, task)
+    if jobgraph.done(job_dir, task):
+        events.note(f"task {task_id} is done already ({task['folder']})")
+        return {"ran": False, "seconds": 0.0}
+    started = process_age()
+    start = time.perf_counter()
+    scene = pipeline.render_one(s, job_dir / task["folder"], plan["spec"]["samples"],
+                                verbose=verbose, events=events)
+    # the task's time split for the benchmark: process start-up, scene build and saving,
+    # Cycles' synchronisation (the shader compile), Cycles' render
+    jobgraph.mark_done(job_dir, task, {
+        "process_start_seconds": started, "pid": os.getpid(),
+        "task_seconds": round(time.perf_counter() - start, 3),
+        **{k: scene.get(k) for k in ("render_seconds", "sync_seconds",
+                                     "cycles_render_seconds")}})
+    return {"ran": True, "seconds": time.perf_counter() - start, "scene": scene}
+
+
+# ----------------------------------------------------------------------------------------
+# The merge
+
+def _scene(job_dir: Path, folder: str) -> dict:
+    return json.loads((Path(job_dir) / folder / "scene.json").read_text(encoding="utf-8"))
+
+
+def merge(job_dir: Path, events=None, verbose: bool = False,
+          steps: int | None = None) -> dict:
+    """``ctlab merge JOB``: every render task checked (one line naming those to re-run),
+    then the comparisons, plots and report from the job folder alone, under the merge lock."""
+    events = events or pipeline.Events()
+    job_dir = Path(job_dir)
+    plan = jobgraph.read_plan(job_dir)
+    with jobgraph.merge_lock(job_dir):
+        jobgraph.check_complete(job_dir, plan)
+        base = settings_from_dict(plan["spec"]["base"])
+        if plan["job"] == "matrix":
+            return _merge_matrix(job_dir, plan, base, events, verbose, steps)
+        return _merge_parity(job_dir, plan, events, steps)
+
+
+def _merge_matrix(out, plan, base, events, verbose, steps) -> dict:
+    steps = steps or 2
+    labels = matrix_labels()
+    folders = [t["folder"] for t in jobgraph.render_tasks(plan)]
+    scenes = {f: _scene(out, f) for f in folders}
+    timings = {labels[f]: scenes[f]["render_seconds"] for f in folders}
+    events.check()
+    events.progress(steps - 1, steps, "comparing; the BRDF plots")
+    results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
+               for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS}
+    furnace = {pipeline.furnace_label(g, e): energy.directional_albedo(
+        read_image(out / folder / "render.exr"), scenes[folder])
+        for folder, g, e in pipeline.FURNACE_RENDERS}
+    plots = []
+    for name, label, plot in pipeline.report_plots(base):
+        events.check()
+        events.note(f"BRDF plot: {label}")
+        inner = pipeline.Events(note=pipeline._nothing, cancelled=events.cancelled)
+        plots.append((label, f"plots/{name}",
+                      pipeline.run_plot(plot, out / "plots" / name, inner, verbose)))
+    events.progress(steps, steps, "writing the report")
+    report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
+                                for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS[:5]],
+                          scenes["cook_torrance"], timings,
+                          attribution=[(s[1], results[s[0]], *s[2:])
+                                       for s in pipeline.ATTRIBUTION],
+                          furnace=furnace, plots=plots)
+    return {"job": "matrix", "report": report, "comparisons": results}
+
+
+def _merge_parity(out, plan, events, steps) -> dict:
+    steps = steps or 1
+    names = list(dict.fromkeys(t["folder"].split("/")[0] for t in jobgraph.render_tasks(plan)))
+    entries = []
+    for name in names:
+        events.check()
+        result = compare(out / name / "cook_torrance", out / name / "principled",
+                         out / name / "compare")
+        worst = max(c["ciede2000_mean"] for c in result["cells"])
+        events.note(f"{name}: mean CIEDE2000 {result['overall']['ciede2000_mean']:.2f}, "
+                    f"worst sphere {worst:.2f} (bound {pipeline.PARITY_BOUND})")
+        entries.append((name, result, _scene(out, f"{name}/cook_torrance")))
+    events.progress(steps, steps, "writing the report")
+    report = write_parity_report(out, entries, pipeline.PARITY_BOUND)
+    holds = all(max(c["ciede2000_mean"] for c in r["cells"]) <= pipeline.PARITY_BOUND
+                for _, r, _ in entries)
+    return {"job": "parity", "holds": holds, "report": report,
+            "comparisons": {n: r for n, r, _ in entries}}
+
+
+# ----------------------------------------------------------------------------------------
+# The jobs, run here
+
+def run_matrix(base: MatrixSettings, samples: int, out: Path,
+               events: pipeline.Events | None = None, verbose: bool = False,
+               workers: int = 1) -> dict:
+    """The main job: the OSL shader against Principled BSDF, the baked IBL modes against the
+    reference integration, the node group against the OSL shader, the attribution and the
+    white furnace, compared cell by cell, with report.html. Returns the comparisons. Its
+    task graph run here (``workers``: render tasks as local processes); a render done
+    already for the same settings and versions is kept."""
+    events = events or pipeline.Events()
+    plan = make_plan("matrix", base, samples)
+    check_writable(out)
+    pipeline._forget_report(out)
+    write_plan(out, plan, replace=True)
+    return run_graph(plan, out, events, verbose, workers)
+
+
+def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
+               events: pipeline.Events | None = None, verbose: bool = False,
+               name: str | None = None, workers: int = 1) -> dict:
+    """With Smith G, Lambert diffuse, metallic 1, the Sun off and no sphere shadowing another,
+    the model is Principled BSDF's single-scatter GGX metal, so our reference integration and
+    Cycles' path tracer must agree up to noise: both rendered under each HDRI (and the base's
+    lights, if it has any) and compared, each into OUT/<HDRI stem>/, or OUT/<name>/ for a
+    single HDRI given a name (the lights file's stem). Returns the verdict, the report and
+    each run's comparison. Its task graph, run here."""
+    events = events or pipeline.Events()
+    plan = make_plan("parity", base, samples, hdris=hdris, name=name)
+    check_writable(out)
+    pipeline._forget_report(out)
+    write_plan(out, plan, replace=True)
+    return run_graph(plan, out, events, verbose, workers)
+
+
+# ----------------------------------------------------------------------------------------
+# The whole graph: in this process, or render tasks as local worker processes
+
+def _describe(plan: dict, task: dict) -> str:
+    s = settings_from_dict(plan["spec"]["base"])
+    samples = plan["spec"]["samples"]
+    folder = task["folder"]
+    if plan["job"] == "matrix":
+        r = pipeline.matrix_settings(s)[folder]
+        return (f"{matrix_labels()[folder]}: grid {r.rows}x{r.cols}, {r.width}x{r.height} px, "
+                f"{samples} samples")
+    name, what = folder.split("/")
+    return f"{name}: {what}, grid {s.rows}x{s.cols}, {s.width} px, {samples} samples"
+
+
+def task_command(job_dir: Path, task_id: str) -> list:
+    return [sys.executable, str(CTLAB_SCRIPT), "task", str(job_dir), task_id]
+
+
+def run_graph(plan: dict, job_dir: Path, events=None, verbose: bool = False,
+              workers: int = 1) -> dict:
+    """Every render task not done yet (in this process, or ``workers`` processes running
+    ``ctlab task``), then the merge. Progress: one step per render task, the merge's last."""
+    events = events or pipeline.Events()
+    job_dir = Path(job_dir)
+    renders = jobgraph.render_tasks(plan)
+    steps = len(renders) + (2 if plan["job"] == "matrix" else 1)
+    if workers <= 1:
+        for i, task in enumerate(renders):
+            events.check()
+            events.progress(i + 1, steps, _describe(plan, task))
+            result = run_task(job_dir, task["id"], events, verbose)
+            if result["ran"]:
+                events.note(f"{result['scene']['render_seconds']:.1f} s")
+    else:
+        _run_workers(plan, job_dir, renders, workers, steps, events)
+    return merge(job_dir, events, verbose, steps=steps)
+
+
+def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
+    pending = [t for t in renders if not jobgraph.done(job_dir, t)]
+    running, failed, finished = {}, [], len(renders) - len(pending)
+    logs = job_dir / jobgraph.TASKS_DIR
+    logs.mkdir(exist_ok=True)
+    env = {k: v for k, v in os.environ.items() if k != "CTLAB_JSON_EVENTS"}
+    try:
+        while pending or running:
+            if events.cancelled():
+                raise Cancelled()
+            while pending and len(running) < workers and not failed:
+                task = pending.pop(0)
+                log = open(logs / (task["folder"].replace("/", "__") + ".log"), "w")
+                proc = subprocess.Popen(task_command(job_dir, task["id"]), stdout=log,
+                                        stderr=subprocess.STDOUT, env=env)
+                running[proc] = (task, log, time.perf_counter())
+            if failed and not running:
+                break
+            time.sleep(0.1)
+            for proc in [p for p in running if p.poll() is not None]:
+                task, log, start = running.pop(proc)
+                log.close()
+                if proc.returncode:
+                    failed.append((task, proc.returncode))
+                    continue
+                finished += 1
+                events.progress(finished, steps, f"{_describe(plan, task)} "
+                                f"({time.perf_counter() - start:.1f} s, worker process)")
+    finally:
+        for proc, (task, log, _) in running.items():
+            proc.terminate()
+            proc.wait()
+            log.close()
+    if failed:
+        task, code = failed[0]
+        tail = ""
+        log = logs / (task["folder"].replace("/", "__") + ".log")
+        lines = [ln for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
+        tail = f": {lines[-1]}" if lines else ""
+        raise UserError(f"task {task['id']} ({task['folder']}) failed (exit {code}){tail}; "
+                        f"re-run: ctlab task {job_dir} {task['id']} (log: {log})")
