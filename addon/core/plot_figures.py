@@ -2,7 +2,13 @@
 brdf_plot.assemble: the slices as float EXRs and PNGs (log scale, labelled axes, a colour bar),
 the lobes and the directional albedo as SVG, PNG and CSV, a composite plot.png for the
 add-on's Image Editor, and plot.json with the parameters and axes. Every file of a plot is
-written under a temporary name and renamed when all are whole (files.atomic_paths)."""
+written under a temporary name and renamed when all are whole (files.atomic_paths).
+
+plot.json is also the manifest of what the plot wrote: each file's content hash
+("sha256"). A later plot into the same folder removes an earlier one's files that it does not
+write again only when the file still has the hash that plot recorded; a plot.json ctlab did
+not write, or a file changed since, is left alone with a warning (ctlab deletes only what it
+wrote)."""
 
 from __future__ import annotations
 
@@ -202,9 +208,11 @@ def plot_data(settings, results: dict, files: list) -> dict:
     }
 
 
-def write_plot(out: Path, settings, results: dict, extra: dict | None = None) -> dict:
+def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
+               warn=None) -> dict:
     """Every file of the plot, written together (whole or not at all); returns plot.json's
-    data (with ``extra``, e.g. the Blender version, under "renderer")."""
+    data (with ``extra``, e.g. the Blender version, under "renderer"). ``warn(message)``:
+    an earlier plot's file that is left alone (not verifiably ctlab's)."""
     _check_finite(results)
     out = Path(out)
     tags = [t for t in results if t != "labels"]
@@ -230,7 +238,7 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
     if blocked:
         raise UserError(f"{out} holds a folder named {blocked[0]}, where the plot writes a "
                         "file; choose another --out")
-    earlier = _earlier_files(out)
+    earlier, unverified = _earlier_files(out, set(names))
     with atomic_paths(*paths) as staged:      # renamed in order: plot.json, the index, last
         where = dict(zip(names, staged))
         for n, values in exrs.items():
@@ -239,18 +247,49 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
             where[n].write_text(text, encoding="utf-8")
         for n, canvas in pngs.items():
             canvas.save_png(where[n])
+        data["sha256"] = {n: _digest(where[n]) for n in names if n != "plot.json"}
         where["plot.json"].write_text(json_text(data), encoding="utf-8")
-    for name in earlier - set(names):         # an earlier plot's variants and views
+    for name in earlier:                      # an earlier plot's variants and views
         (out / name).unlink(missing_ok=True)
+    if unverified and warn is not None:
+        warn(f"{len(unverified)} file(s) an earlier plot.json in {out} lists were left alone "
+             f"(not verifiably written by ctlab: {', '.join(sorted(unverified)[:3])})")
     return data
 
 
-def _earlier_files(out: Path) -> set:
-    """The files an earlier plot in ``out`` wrote (its plot.json's list; plain names only)."""
+def _digest(path: Path) -> str:
+    import hashlib
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _earlier_files(out: Path, keep: set) -> tuple:
+    """The files an earlier plot in ``out`` wrote and this one does not write again, as two
+    sets: those that still hold the content hash its plot.json recorded (safe to remove),
+    and those listed without a matching hash (left alone: a plot.json ctlab did not write, or
+    edited, or a file changed since). Plain names of regular files only."""
     import json
+    import os
+    import stat
     try:
-        files = json.loads((out / "plot.json").read_text(encoding="utf-8"))["files"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return set()
-    return {f for f in files if isinstance(f, str) and f == Path(f).name
-            and (out / f).is_file()}
+        data = json.loads((out / "plot.json").read_text(encoding="utf-8"))
+        files, hashes = data["files"], data.get("sha256", {})
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return set(), set()
+    if not isinstance(files, list) or not isinstance(hashes, dict):
+        return set(), set()
+    ours, others = set(), set()
+    for f in files:
+        if not isinstance(f, str) or f != Path(f).name or f in (".", "..") or f in keep:
+            continue
+        try:
+            if not stat.S_ISREG(os.lstat(out / f).st_mode):
+                continue
+        except OSError:
+            continue
+        recorded = hashes.get(f)
+        (ours if isinstance(recorded, str) and recorded == _digest(out / f) else others).add(f)
+    return ours, others

@@ -39,6 +39,7 @@ class Events:
     progress: Callable = _nothing           # (step, total, message), before each step
     note: Callable = _nothing               # (message), within a step
     cancelled: Callable = lambda: False     # polled between steps
+    warn: Callable = _nothing               # (message), something left alone or repaired
 
     def check(self) -> None:
         if self.cancelled():
@@ -59,9 +60,9 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
     each render. Returns the last scene description. ``pixel_centres``: every view as one
     sample at each pixel centre (no anti-aliasing)."""
     events = events or Events()
-    hdri = resolve_hdri(settings.hdri)
     for out_dir in out_dirs.values():
-        refuse_overwrite([hdri], [Path(out_dir) / name for name in renderer.OUTPUT_FILES])
+        refuse_overwrite(job_inputs(settings), [Path(out_dir) / name
+                                                for name in renderer.OUTPUT_FILES], [out_dir])
         check_writable(out_dir)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -82,6 +83,21 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
         if on_view:
             on_view(i, view, description)
     return description
+
+
+def job_inputs(settings: MatrixSettings) -> list:
+    """The files a render reads that a user gave (its HDRI, its lights file)."""
+    return [resolve_hdri(settings.hdri), settings.lights_file or None]
+
+
+def refuse_job_outputs(settings: MatrixSettings, out: Path, folders, names=()) -> None:
+    """Before a job's first render: its inputs are none of the files it will write in its
+    render folders (and ``names`` in ``out``), and none of those is blocked or in the cache
+    (core.paths.check_job)."""
+    out = Path(out)
+    refuse_overwrite(job_inputs(settings),
+                     [out / f / n for f in folders for n in renderer.OUTPUT_FILES]
+                     + [out / n for n in names], [out])
 
 
 def render_one(settings: MatrixSettings, out_dir: Path, samples: int, **kw) -> dict:
@@ -172,6 +188,8 @@ def run_matrix(base: MatrixSettings, samples: int, out: Path, events: Events | N
     events = events or Events()
     load_hdri(resolve_hdri(base.hdri))
     settings = matrix_settings(base)
+    refuse_job_outputs(base, out, list(settings), ["report.html"] + [
+        f"{c}/{n}" for c, *_ in MATRIX_COMPARISONS for n in ("metrics.json", "diff.png")])
     check_writable(out)
     _forget_report(out)
     steps = len(settings) + 2
@@ -256,6 +274,8 @@ def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
                                        principled_distribution="MULTI_GGX" if multiple
                                        else "GGX"))
         jobs.append((name if name and len(hdris) == 1 else Path(hdri).stem, ct, pr))
+    refuse_job_outputs(base, out, [f"{n}/{f}" for n, *_ in jobs
+                                   for f in ("cook_torrance", "principled")], ["report.html"])
     check_writable(out)
     _forget_report(out)
     steps, step, entries = 2 * len(jobs) + 1, 0, []
@@ -343,13 +363,14 @@ def run_plot(settings: brdf_plot.PlotSettings, out: Path, events: Events | None 
     code, written into ``out`` whole (plot_figures.write_plot). Returns plot.json's data."""
     from ..core import plot_figures
     events = events or Events()
+    refuse_overwrite([], [Path(out) / "plot.json"], [out])    # not in the cache; no folder there
     check_writable(out)
     results = evaluate_plot(settings, events, verbose)
     events.check()
     events.note("writing the plots")
     return plot_figures.write_plot(Path(out), settings, results,
                                    {"blender": bpy.app.version_string,
-                                    "implementation": settings.shader})
+                                    "implementation": settings.shader}, events.warn)
 
 
 # ----------------------------------------------------------------------------------------
