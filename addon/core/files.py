@@ -128,7 +128,7 @@ def verify(tmp: Path, final: Path) -> None:
         try:
             _read_any(tmp)
         except UserError as exc:
-            fail(f"it reads back truncated or corrupt ({str(exc)[:120]})")
+            fail(f"it reads back truncated or corrupt ({' '.join(str(exc).split())[:120]})")
     elif suffix == ".json":
         try:
             json.loads(Path(tmp).read_text(encoding="utf-8"))
@@ -136,7 +136,31 @@ def verify(tmp: Path, final: Path) -> None:
             fail(f"it reads back as invalid JSON ({exc})")
 
 
+@contextlib.contextmanager
+def _quiet_stderr():
+    """OpenEXR's core library prints its own line for a damaged file on the process's
+    stderr; the read-back's failure is reported as one UserError instead."""
+    try:
+        saved = os.dup(2)
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:
+        yield
+        return
+    os.dup2(null, 2)
+    try:
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+
+
 def _read_any(path) -> None:
+    with _quiet_stderr():
+        _read_all(path)
+
+
+def _read_all(path) -> None:
     import OpenImageIO as OIIO
     inp = OIIO.ImageInput.open(str(path))
     if inp is None:
@@ -228,9 +252,10 @@ def copy_file(src: Path, dst: Path) -> None:
 def temporary_folder(prefix: str):
     """A private folder in the system's temporary folder, registered with the cleanup of an
     interrupt (jobs/signals.py) and removed after the block."""
-    folder = Path(tempfile.mkdtemp(prefix=prefix))
-    _live.add(folder)
+    folder = Path(tempfile.gettempdir()) / f"{prefix}{secrets.token_hex(6)}"
+    _live.add(folder)                      # before it exists: a signal never misses it
     try:
+        folder.mkdir(mode=0o700)
         yield folder
     finally:
         shutil.rmtree(folder, ignore_errors=True)

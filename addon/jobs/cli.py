@@ -499,7 +499,8 @@ def main(argv_=None) -> int:
         fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
         args.func(args)
     except UserError as exc:
-        print(f"ctlab: error: {exc}", file=sys.stderr, flush=True)
+        one_line = " ".join(str(exc).split())          # a library's message may hold newlines
+        print(f"ctlab: error: {one_line}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
     except (Cancelled, KeyboardInterrupt):
         print("ctlab: cancelled; finished outputs are kept", file=sys.stderr, flush=True)

@@ -381,6 +381,7 @@ def run_bake(hdri: Path, out: Path | None = None, events: Events | None = None,
     """Bake the split-sum files of an HDRI (cached by content hash); with ``out`` copy them
     there. Returns the folder holding them."""
     events = events or Events()
+    load_hdri(hdri)                           # the HDRI checked before --out is made
     if out:
         refuse_overwrite([hdri], [Path(out) / name for name in ibl_bake.file_names()])
         check_writable(out)
