@@ -1,6 +1,7 @@
-"""Hardening II (issue 26): every path, file, disk and signal a user can hit. One test (or a
-few) per class of the issue, each of which failed on the code before it, and property tests
-(Hypothesis) over paths, names, numbers in every Unicode digit class and files of every type.
+"""Hardening II: every path, file, disk and signal a user can hit. One test (or a few) per
+class of docs/bad-input.md "Paths, files, disks and signals", each of which failed on the
+code before it, and property tests (Hypothesis) over paths, names, numbers in every Unicode
+digit class and files of every type.
 Most checks happen before any render, so most tests render nothing; the rest are tiny
 (32 px, one sample, one sphere)."""
 
@@ -29,6 +30,27 @@ from addon.jobs import cli
 CTLAB = [sys.executable, str(ROOT / "scripts" / "ctlab.py")]
 TINY = ["--grid", "1x1", "--size", "32", "--samples", "1"]
 RENDER = ["render", "--shader", "nodes", "--view", "NdotL", *TINY]
+
+
+# The rows of docs/bad-input.md that these tests hold (test_bad_input checks the table lists
+# them): ID -> the test.
+CASES = {
+    "lights-in-render-folder":
+        "test_a_lights_file_in_a_matrix_render_folder_is_refused_before_any_render",
+    "lights-stem-dots": "test_a_lights_stem_of_dots_stays_inside_out",
+    "plot-foreign-manifest": "test_a_plot_json_ctlab_did_not_write_deletes_nothing",
+    "plot-changed-file": "test_a_plot_removes_its_own_earlier_files_and_leaves_changed_ones",
+    "cache-foreign-file": "test_a_damaged_cache_entry_with_a_users_file_loses_nothing_of_theirs",
+    "write-disk-full": "test_a_full_disk_fails_the_render_with_one_line_and_keeps_nothing",
+    "write-error": "test_failed_writes_are_one_line_naming_the_file",
+    "write-truncated": "test_a_truncated_image_is_never_renamed_into_place",
+    "signal-osl-compile": "test_sigterm_while_the_osl_shader_compiles_leaves_nothing",
+}
+
+
+@pytest.mark.quick
+def test_each_documented_case_names_a_test_here():
+    assert all(callable(globals().get(name)) for name in CASES.values()), CASES
 
 
 def _one_line(capsys, code, expect=None):
@@ -494,7 +516,7 @@ def test_numbers_in_every_unicode_digit_class(digits):
 
 
 def test_unicode_digit_classes_are_covered():
-    """The strategy above reaches the classes the issue names (a sanity check on it)."""
+    """The strategy above reaches the classes named above (a sanity check on it)."""
     assert unicodedata.category("²") == "No" and unicodedata.category("٣") == "Nd"
     assert "²".isdigit() and not "²".isdecimal()
 
