@@ -170,6 +170,10 @@ def test_sigterm_during_the_main_job_keeps_the_finished_renders(tmp_path):
     read_image(first / "render.exr")                                  # whole
     assert not [p for p in out.rglob("*") if "partial" in p.name]
     assert not (out / "report.html").exists()
+    (out / "report.html").write_text("<p>a user's own page</p>")     # not ctlab's: kept
+    assert cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1",
+                     "--out", str(out)]) == cli.EXIT_CANCELLED
+    assert (out / "report.html").read_text() == "<p>a user's own page</p>"
 
 
 def test_ctrl_c_during_a_bake_leaves_no_staging_folder(tmp_path):
@@ -204,7 +208,8 @@ def test_a_rerun_removes_the_old_report_first(tmp_path, monkeypatch):
     that stops half-way never leaves a report of old numbers beside new images."""
     out = tmp_path / "m"
     out.mkdir()
-    (out / "report.html").write_text("<p>an old run</p>")
+    (out / "report.html").write_text("<!DOCTYPE html><html><head><title>Cook-Torrance Lab: "
+                                     "sphere matrix report</title></head>an old run</html>")
     from addon.jobs import pipeline
 
     def stop_at_the_first_render(*args, **kw):
@@ -213,3 +218,7 @@ def test_a_rerun_removes_the_old_report_first(tmp_path, monkeypatch):
     assert cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1",
                      "--out", str(out)]) == cli.EXIT_CANCELLED
     assert not (out / "report.html").exists()
+    (out / "report.html").write_text("<p>a user's own page</p>")     # not ctlab's: kept
+    assert cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1",
+                     "--out", str(out)]) == cli.EXIT_CANCELLED
+    assert (out / "report.html").read_text() == "<p>a user's own page</p>"

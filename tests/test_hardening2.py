@@ -40,6 +40,7 @@ CASES = {
     "lights-stem-dots": "test_a_lights_stem_of_dots_stays_inside_out",
     "plot-foreign-manifest": "test_a_plot_json_ctlab_did_not_write_deletes_nothing",
     "plot-changed-file": "test_a_plot_removes_its_own_earlier_files_and_leaves_changed_ones",
+    "report-not-ctlabs": "test_only_a_report_ctlab_wrote_is_removed_before_a_run",
     "cache-foreign-file": "test_a_damaged_cache_entry_with_a_users_file_loses_nothing_of_theirs",
     "write-disk-full": "test_a_full_disk_fails_the_render_with_one_line_and_keeps_nothing",
     "write-error": "test_failed_writes_are_one_line_naming_the_file",
@@ -283,6 +284,22 @@ def test_a_plot_removes_its_own_earlier_files_and_leaves_changed_ones(tmp_path, 
     assert edited.exists()                               # changed since: left alone
     assert not (out / views[1]).exists()                 # still ctlab's: removed
     assert "left alone" in capsys.readouterr().err
+
+
+@pytest.mark.quick
+def test_only_a_report_ctlab_wrote_is_removed_before_a_run(tmp_path):
+    """A job removes an earlier run's report.html before it starts; a user's own page of
+    that name is not ctlab's and stays (the job's own report replaces it only at the end)."""
+    from addon.core.report import write_parity_report  # noqa: F401  (the writer's module)
+    theirs = tmp_path / "report.html"
+    theirs.write_text("<p>my page</p>")
+    assert not files.forget_report(theirs) and theirs.exists()
+    theirs.write_text("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+                      "<title>Cook-Torrance Lab: sphere matrix report</title>")
+    assert files.forget_report(theirs) and not theirs.exists()
+    link = tmp_path / "link.html"
+    link.symlink_to(tmp_path / "elsewhere.html")
+    assert not files.forget_report(link) and link.is_symlink()
 
 
 @pytest.mark.quick

@@ -211,9 +211,9 @@ def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
         if not mask.any():
             raise UserError(f"sphere {cell['row']},{cell['col']} of {dir_a} covers no pixel; "
                             "render with a larger --size or a smaller --grid")
-    out_dir = check_writable(out_dir)
     refuse_overwrite([Path(d) / n for d in (dir_a, dir_b) for n in RENDER_FILES],
-                     [out_dir / "metrics.json", out_dir / "diff.png"])
+                     [Path(out_dir) / "metrics.json", Path(out_dir) / "diff.png"], [out_dir])
+    out_dir = check_writable(out_dir)
     de = ciede2000(srgb_to_lab(disp_a), srgb_to_lab(disp_b))
     all_mask = np.logical_or.reduce(masks)
     cells = [{k: cell[k] for k in ("row", "col", "metallic", "smoothness")}

@@ -38,6 +38,13 @@ def _token() -> str:
 
 
 def live_temporaries() -> list:
+    """The temporaries now being written (the signal watcher's thread reads this while the
+    main thread may be changing it: a copy taken again if the set changed meanwhile)."""
+    for _ in range(100):
+        try:
+            return list(_live)
+        except RuntimeError:            # "Set changed size during iteration"
+            continue
     return list(_live)
 
 
@@ -69,6 +76,27 @@ def remove_stale_temporaries(folder: Path) -> int:
                     entry.unlink()
             removed += 1
     return removed
+
+
+REPORT_MARK = b"<title>Cook-Torrance Lab:"      # in the head of every report ctlab writes
+
+
+def forget_report(path) -> bool:
+    """Remove an earlier run's report (a job writes its own last, so that one stopped
+    half-way leaves no report showing new images beside old numbers), but only when ctlab
+    wrote it: a regular file whose head holds REPORT_MARK. Returns whether it was removed."""
+    path = Path(path)
+    try:
+        if not path.is_file() or path.is_symlink():
+            return False
+        with open(path, "rb") as f:
+            head = f.read(1024)
+    except OSError:
+        return False
+    if REPORT_MARK not in head:
+        return False
+    path.unlink(missing_ok=True)
+    return True
 
 
 def refuse_overwrite(inputs, outputs, folders=()) -> None:

@@ -22,7 +22,7 @@ from ..blender.paths import bundled_hdri, resolve_hdri
 from ..core import brdf_plot, energy, ibl_bake
 from ..core.compare import compare, read_image
 from ..core.errors import Cancelled
-from ..core.files import check_writable, refuse_overwrite
+from ..core.files import check_writable, forget_report, refuse_overwrite
 from ..core.hdri import load_hdri
 from ..core.report import write_parity_report, write_report
 from ..core.model import BAKED_IBL_MODES, G_MODELS
@@ -160,7 +160,7 @@ def furnace_label(g_model: str, energy_mode: str) -> str:
 def _forget_report(out: Path) -> None:
     """A job writes its report last: remove an earlier run's first, so that a job stopped
     half-way leaves no report showing new images beside old numbers."""
-    (Path(out) / "report.html").unlink(missing_ok=True)
+    forget_report(Path(out) / "report.html")      # only one ctlab wrote (core.files)
 
 
 def matrix_settings(base: MatrixSettings) -> dict:
