@@ -46,6 +46,7 @@ CASES = {
     "write-error": "test_failed_writes_are_one_line_naming_the_file",
     "write-truncated": "test_a_truncated_image_is_never_renamed_into_place",
     "signal-osl-compile": "test_sigterm_while_the_osl_shader_compiles_leaves_nothing",
+    "signal-pixel-grid": "test_a_signal_inside_a_registered_temporary_folder_leaves_nothing",
 }
 
 
@@ -439,6 +440,36 @@ def test_sigterm_while_the_osl_shader_compiles_leaves_nothing(tmp_path):
     assert proc.returncode == 130, err[-2000:]
     assert not any(tmp.iterdir()), list(tmp.rglob("*"))
     assert not out.exists() or not any(out.iterdir())
+
+
+CHILD = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+from addon.core.files import atomic_path, temporary_folder
+from addon.jobs import signals
+signals.install()
+with temporary_folder("ctlab-pixels-") as folder, atomic_path(folder / "pixels.exr") as tmp:
+    tmp.write_bytes(b"half")
+    print("ready", flush=True)
+    time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_inside_a_registered_temporary_folder_leaves_nothing(sig, tmp_path):
+    """The one cleanup path (jobs/signals.py) removes a pixel grid's temporary folder and a
+    staged file in it, whatever the phase: the process ends at once with 130."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(ROOT)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, TMPDIR=str(tmp)))
+    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    assert any(tmp.iterdir())
+    proc.send_signal(sig)
+    proc.communicate(timeout=30)
+    assert proc.returncode == 130
+    assert not any(tmp.iterdir()), list(tmp.rglob("*"))
 
 
 @pytest.mark.quick
