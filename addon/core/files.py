@@ -121,11 +121,21 @@ WRITE_ERRORS = {errno.ENOSPC: "the disk is full", errno.EFBIG: "a file-size limi
                 errno.EIO: "an input/output error"}
 
 
+def public(path) -> Path:
+    """The path a user knows for a staged one (.NAME.<pid>-<hex>.partial.EXT -> NAME.EXT):
+    a writer nested in a staged set names the file it stands for."""
+    path = Path(path)
+    while m := _STAGING.match(path.name):
+        path = path.with_name(path.name[1:m.start(1) - 1] + (m[2] or ""))
+    return path
+
+
 def write_error(exc: OSError, path) -> UserError | None:
     """The UserError for a failed write of ``path``, or None when it is not a user's problem."""
     cause = WRITE_ERRORS.get(exc.errno)
     if cause is None:
         return None
+    path = public(path)
     return UserError(f"cannot write {path}: {cause} ({exc.strerror or exc}); nothing was "
                      "kept; free space or choose another --out")
 
@@ -136,6 +146,8 @@ _IMAGE_SUFFIXES = {".exr", ".png", ".hdr", ".tif", ".tiff", ".jpg"}
 def verify(tmp: Path, final: Path) -> None:
     """A staged file is whole before it is renamed: a regular file of some bytes; an image
     read back whole (OpenImageIO, when importable), a JSON file parsed."""
+    final = public(final)
+
     def fail(why):
         raise UserError(f"cannot write {final}: {why}; nothing was kept (the disk may be "
                         "full or a file-size limit reached)")

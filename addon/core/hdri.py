@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from .files import atomic_path
+from .files import atomic_path, public
 
 
 def oiio():
@@ -134,11 +134,11 @@ def write_float_exr(path: Path, pixels: np.ndarray) -> None:
     with atomic_path(path) as tmp:
         out = OIIO.ImageOutput.create(str(tmp))
         if out is None or not out.open(str(tmp), spec):
-            raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+            raise UserError(f"cannot write {public(path)}: {OIIO.geterror().strip()}")
         ok = out.write_image(pixels)
         out.close()
         if not ok:
-            raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+            raise UserError(f"cannot write {public(path)}: {OIIO.geterror().strip()}")
 
 
 def uniform_world(colour) -> Path:
