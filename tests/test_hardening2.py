@@ -127,6 +127,16 @@ def test_a_deep_out_is_refused_before_any_work(tmp_path, capsys):
 _SOCKETS = []
 
 
+@pytest.fixture(autouse=True)
+def _no_socket_left():
+    yield
+    import shutil
+    while _SOCKETS:
+        s, folder = _SOCKETS.pop()
+        s.close()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _special(kind: str, tmp_path: Path) -> str:
     path = tmp_path / f"special-{kind}.json"
     if kind == "fifo":
@@ -140,7 +150,7 @@ def _special(kind: str, tmp_path: Path) -> str:
         path = Path(tempfile.mkdtemp(prefix="s", dir="/tmp")) / "s.json"
         s = socket.socket(socket.AF_UNIX)
         s.bind(str(path))
-        _SOCKETS.append(s)
+        _SOCKETS.append((s, path.parent))
     elif kind == "link-to-folder":
         (tmp_path / "target").mkdir()
         path.symlink_to(tmp_path / "target")

@@ -7,7 +7,8 @@ the HDRI, the lights file, the .blend, the compared folders' files, --out and th
   every platform (``BLI_path_slash_native``).
 - Byte limits: a name of at most 255 bytes (NAME_MAX of Linux and macOS file systems) and a
   whole path below Blender's FILE_MAX (1024 bytes with the NUL; ``BLI_path_utils.hh``), past
-  which its image writer truncates a path silently and writes elsewhere. An output folder
+  which its image writer truncates a path silently and writes elsewhere (measured on bpy
+  5.2.3: ``Image.save_render`` to a path of 1030 bytes wrote the file at its first 1023). An output folder
   keeps ``OUTPUT_RESERVE`` bytes for the longest name a job writes below it (a staging name
   of a matrix sub-folder's file, ``core.files.staging_name``). Checked before any work.
 - An input is a regular file: stat first, then opened with O_NONBLOCK, so a named pipe or a
