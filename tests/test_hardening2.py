@@ -286,6 +286,9 @@ def test_a_plot_removes_its_own_earlier_files_and_leaves_changed_ones(tmp_path, 
     out = tmp_path / "p"
     assert _plot(out, "--view", "D,F") == 0
     data = json.loads((out / "plot.json").read_text())
+    from addon.core.brdf_plot import PlotSettings
+    from addon.core.plot_figures import planned_names
+    assert planned_names(PlotSettings(smoothness=0.3, views=("D", "F"))) == set(data["files"])
     views = [f for f in data["files"] if f.startswith("slice_") and f.endswith(".exr")]
     assert len(views) >= 2 and set(views) <= set(data["sha256"]), data["files"]
     edited = out / views[0]
@@ -311,6 +314,20 @@ def test_only_a_report_ctlab_wrote_is_removed_before_a_run(tmp_path):
     link = tmp_path / "link.html"
     link.symlink_to(tmp_path / "elsewhere.html")
     assert not files.forget_report(link) and link.is_symlink()
+
+
+def test_a_folder_where_a_plot_file_goes_is_refused_before_any_render(tmp_path, capsys,
+                                                                       monkeypatch):
+    from addon.jobs import pipeline
+    out = tmp_path / "p"
+    (out / "albedo.svg").mkdir(parents=True)
+    monkeypatch.setattr(pipeline, "evaluate_plot", lambda *a: pytest.fail("rendered"))
+    _one_line(capsys, _plot(out, "--compare", "g=smith_ggx_correlated"),
+              "holds a folder named albedo.svg")
+    from addon.core.brdf_plot import PlotSettings
+    from addon.core.plot_figures import planned_names
+    names = planned_names(PlotSettings(compare=(("g", "smith_ggx_correlated"),)))
+    assert "slice_g-smith_ggx_correlated.exr" in names or any("diff_" in n for n in names)
 
 
 @pytest.mark.quick

@@ -208,6 +208,27 @@ def plot_data(settings, results: dict, files: list) -> dict:
     }
 
 
+def planned_names(settings) -> set:
+    """The names of the files a plot with these settings writes, known before any render
+    (so a folder standing where one goes is refused first; write_plot checks it agrees)."""
+    tags = [tag for tag, _, _ in settings.variants() if tag]
+    slices = [slice_name()] + [slice_name(v) for v in settings.views] + \
+        [slice_name(tag=t) for t in tags]
+    return ({f"{n}.exr" for n in slices} | {f"{n}.png" for n in slices}
+            | {slice_name(tag=f"diff_{t}") + ".png" for t in tags}
+            | {"lobe.svg", "albedo.svg", "lobe.csv", "albedo.csv", "lobe.png", "albedo.png",
+               "plot.png", "plot.json"})
+
+
+def refuse_blocked(out: Path, names) -> None:
+    """A folder (or anything not a file) where the plot writes a file is refused."""
+    out = Path(out)
+    blocked = sorted(n for n in names if (out / n).exists() and not (out / n).is_file())
+    if blocked:
+        raise UserError(f"{out} holds a folder named {blocked[0]}, where the plot writes a "
+                        "file; choose another --out")
+
+
 def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
                warn=None) -> dict:
     """Every file of the plot, written together (whole or not at all); returns plot.json's
@@ -234,10 +255,7 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
     if extra:
         data["renderer"] = extra
     paths = [out / n for n in names]
-    blocked = [p.name for p in paths if p.exists() and not p.is_file()]
-    if blocked:
-        raise UserError(f"{out} holds a folder named {blocked[0]}, where the plot writes a "
-                        "file; choose another --out")
+    refuse_blocked(out, names)
     earlier, unverified = _earlier_files(out, set(names))
     with atomic_paths(*paths) as staged:      # renamed in order: plot.json, the index, last
         where = dict(zip(names, staged))

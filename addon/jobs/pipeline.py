@@ -363,7 +363,8 @@ def run_plot(settings: brdf_plot.PlotSettings, out: Path, events: Events | None 
     code, written into ``out`` whole (plot_figures.write_plot). Returns plot.json's data."""
     from ..core import plot_figures
     events = events or Events()
-    refuse_overwrite([], [Path(out) / "plot.json"], [out])    # not in the cache; no folder there
+    refuse_overwrite([], [Path(out) / "plot.json"], [out])    # not in the cache
+    plot_figures.refuse_blocked(out, plot_figures.planned_names(settings))   # before renders
     check_writable(out)
     results = evaluate_plot(settings, events, verbose)
     events.check()
