@@ -166,7 +166,8 @@ LIGHTS_FILES = {
     "bright": '[{"type": "POINT", "energy": 1e6, "exposure": 12}]',
 }
 OPERATOR_CASES = ("op-matrix-hdri", "op-bake-hdri", "op-convert-not-principled",
-                  "op-convert-not-model", "op-convert-no-material", "op-comparison-running")
+                  "op-convert-not-model", "op-convert-no-material", "op-comparison-running",
+                  "op-comparison-out-backslash")
 
 
 def test_the_docs_table_and_these_tests_list_the_same_cases():
@@ -305,7 +306,8 @@ def test_operator_bad_input(case, addon, tmp_path, monkeypatch):
                "op-convert-not-principled": "its surface is not a Principled BSDF",
                "op-convert-not-model": "does not use the Cook-Torrance model",
                "op-convert-no-material": "no material to convert",
-               "op-comparison-running": "a comparison is already running"}[case]
+               "op-comparison-running": "a comparison is already running",
+               "op-comparison-out-backslash": "holds a backslash, which Blender reads"}[case]
     cache = tmp_path / "cache"
     monkeypatch.setenv("CTLAB_CACHE", str(cache))
     if case == "op-convert-not-principled":
@@ -325,7 +327,9 @@ def test_operator_bad_input(case, addon, tmp_path, monkeypatch):
             "op-convert-not-model": lambda: bpy.ops.ctlab.convert_to_principled(),
             "op-convert-no-material": lambda: bpy.ops.ctlab.convert_to_cook_torrance(),
             "op-comparison-running": lambda: bpy.ops.ctlab.render_comparison(
-                directory=str(tmp_path / "out"))}[case]
+                directory=str(tmp_path / "out")),
+            "op-comparison-out-backslash": lambda: bpy.ops.ctlab.render_comparison(
+                directory=str(tmp_path / "out") + "\\sub")}[case]
     with pytest.raises(RuntimeError, match=re.escape(message)):
         call()
     assert _snapshot() == before                     # the scene and materials as they were

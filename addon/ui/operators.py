@@ -18,6 +18,7 @@ from ..blender import light_sync, model_node
 from ..blender.drivers import world_nodes
 from ..blender.scene_builder import build_matrix
 from ..core.errors import UserError
+from ..core.paths import clean
 from ..core.model import IBL_LABELS, IBL_MODES, MATRIX_ALBEDO, ModelOptions
 from ..core.settings import MAX_GRID, SHADERS, MatrixSettings
 
@@ -585,6 +586,7 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
             values["sun_strength"] = sun.data.energy
         argv = job_argv("matrix", "--out", out, **values)
         try:
+            clean(str(out), "output folder", output=True)    # the one path gate, first
             check_writable(out)
             if hdri:
                 from ..core.hdri import load_hdri
@@ -665,6 +667,7 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
                                     str(Path(default_comparison_folder()).parent / "scene"))
         out = Path(bpy.path.abspath(folder))
         try:
+            clean(str(out), "output folder", output=True)    # the one path gate, first
             check_writable(out)
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
@@ -776,6 +779,7 @@ class CTLAB_OT_brdf_plot(bpy.types.Operator):
         node = model_node.find(_active_material(context))
         out = Path(bpy.path.abspath(self.directory or default_plot_folder()))
         try:
+            clean(str(out), "output folder", output=True)    # the one path gate, first
             check_writable(out)
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
