@@ -7,13 +7,13 @@ read-only, and external-mode script nodes write the compiled .oso next to the .o
 
 from __future__ import annotations
 
-import shutil
 import tempfile
 from pathlib import Path
 
 import bpy
 
 from ..core.errors import UserError
+from ..core.files import temporary_folder
 from ..core.osl_source import SHADER_FILE, source
 
 TEXT_NAME = "ctlab_cook_torrance.osl"
@@ -53,14 +53,15 @@ def compile_script_node(node: bpy.types.ShaderNodeScript, path: Path = SHADER_FI
             errors.append(message)
 
     # Cycles compiles an internal script through temporary .osl and .oso files and leaves the
-    # .oso (the bytecode is kept in the node): compile in a private folder, removed after.
+    # .oso (the bytecode is kept in the node): compile in a private folder, removed after,
+    # and by the cleanup of a signal during the compile (core.files.temporary_folder).
     saved = tempfile.tempdir
-    tempfile.tempdir = tempfile.mkdtemp(prefix="ctlab-osl-")
-    try:
-        cycles_osl.update_script_node(node, report)
-    finally:
-        shutil.rmtree(tempfile.tempdir, ignore_errors=True)
-        tempfile.tempdir = saved
+    with temporary_folder("ctlab-osl-") as folder:
+        tempfile.tempdir = str(folder)
+        try:
+            cycles_osl.update_script_node(node, report)
+        finally:
+            tempfile.tempdir = saved
     if errors or output not in node.outputs:
         raise UserError(f"the OSL shader {Path(path).name} failed to compile: "
                         + ("; ".join(errors) or "no output socket") + " (see the console)")

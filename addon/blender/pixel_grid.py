@@ -11,10 +11,6 @@ sampling tests use it.
 
 from __future__ import annotations
 
-import shutil
-import tempfile
-from pathlib import Path
-
 import bpy
 import numpy as np
 
@@ -87,12 +83,10 @@ def render(scene: bpy.types.Scene, log_path=None) -> np.ndarray:
     (H, W, 3), row 0 the top. The image passes through a private temporary folder, removed
     after."""
     from ..core.compare import read_image
+    from ..core.files import temporary_folder
     result = renderer.render_result(log_path)
-    folder = Path(tempfile.mkdtemp(prefix="ctlab-pixels-"))
-    try:
+    with temporary_folder("ctlab-pixels-") as folder:    # removed on a signal too
         path = folder / "pixels.exr"
         with renderer.quiet(log_path):
             renderer.save_exr(scene, result, path)
         return read_image(path)
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)

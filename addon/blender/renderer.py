@@ -136,21 +136,26 @@ def _view_transform(scene: bpy.types.Scene, view: str) -> None:
 
 
 @contextlib.contextmanager
-def quiet(log_path: Path | None):
-    """Send Blender's C-level stdout (per-tile progress lines) to a log file."""
+def quiet(log_path: Path | None, stderr: bool = False):
+    """Send Blender's C-level stdout (per-tile progress lines) to a log file; with ``stderr``
+    its stderr too (an image writer's own error line: the failed write is reported once, by
+    the verified rename, core.files)."""
     if log_path is None:
         yield
         return
     sys.stdout.flush()
-    saved = os.dup(1)
+    fds = (1, 2) if stderr else (1,)
+    saved = [os.dup(fd) for fd in fds]
     with open(log_path, "ab") as log:
-        os.dup2(log.fileno(), 1)
+        for fd in fds:
+            os.dup2(log.fileno(), fd)
         try:
             yield
         finally:
             sys.stdout.flush()
-            os.dup2(saved, 1)
-            os.close(saved)
+            for fd, old in zip(fds, saved):
+                os.dup2(old, fd)
+                os.close(old)
 
 
 def _save(scene, image, path: Path, fmt: str) -> None:
@@ -220,7 +225,7 @@ def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=No
     result = render_result(log_path)
     elapsed = time.perf_counter() - start
     with atomic_paths(*(out_dir / name for name in OUTPUT_FILES)) as (exr, png, js):
-        with quiet(log_path):
+        with quiet(log_path, stderr=True):
             _save(scene, result, exr, "exr")
             _save(scene, result, png, "png")
         description = dict(description, render_seconds=round(elapsed, 3), **cycles_times(exr),

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from .files import atomic_path, check_writable, finite_json, refuse_overwrite, write_json
+from .files import atomic_path, atomic_paths, check_writable, finite_json, json_text, \
+    refuse_overwrite
 from .hdri import oiio, read_pixels
 from .model import REC709_LUMINANCE
 
@@ -32,13 +33,19 @@ def read_image(path: Path) -> np.ndarray:
 
 def write_png(path: Path, rgb01: np.ndarray) -> None:
     """Write an 8-bit RGB PNG (values already display-referred in 0..1), whole or not at all."""
+    with atomic_path(path) as tmp:
+        write_png_to(tmp, rgb01, path)
+
+
+def write_png_to(tmp: Path, rgb01: np.ndarray, final: Path) -> None:
+    """write_png's writer, into a path already staged (core.files.atomic_paths) for
+    ``final``."""
     OIIO = oiio()
     h, w, _ = rgb01.shape
     buf = OIIO.ImageBuf(OIIO.ImageSpec(w, h, 3, OIIO.UINT8))
     buf.set_pixels(OIIO.ROI(0, w, 0, h, 0, 1, 0, 3), np.clip(rgb01, 0, 1).astype(np.float32))
-    with atomic_path(path) as tmp:
-        if not buf.write(str(tmp)):
-            raise UserError(f"cannot write {path}: {buf.geterror().strip()}")
+    if not buf.write(str(tmp)):
+        raise UserError(f"cannot write {final}: {' '.join(buf.geterror().split())}")
 
 
 # --- Colour science -------------------------------------------------------------------
@@ -211,9 +218,9 @@ def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
         if not mask.any():
             raise UserError(f"sphere {cell['row']},{cell['col']} of {dir_a} covers no pixel; "
                             "render with a larger --size or a smaller --grid")
-    out_dir = check_writable(out_dir)
     refuse_overwrite([Path(d) / n for d in (dir_a, dir_b) for n in RENDER_FILES],
-                     [out_dir / "metrics.json", out_dir / "diff.png"])
+                     [Path(out_dir) / "metrics.json", Path(out_dir) / "diff.png"], [out_dir])
+    out_dir = check_writable(out_dir)
     de = ciede2000(srgb_to_lab(disp_a), srgb_to_lab(disp_b))
     all_mask = np.logical_or.reduce(masks)
     cells = [{k: cell[k] for k in ("row", "col", "metallic", "smoothness")}
@@ -223,7 +230,9 @@ def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
               "a_shader": scene_a.get("shader"), "b_shader": scene_b.get("shader"),
               "overall": metrics(lin_a, lin_b, disp_a, disp_b, de, all_mask),
               "heatmap_max_ciede2000": 10.0, "cells": cells}
-    write_png(out_dir / "diff.png", heatmap(de))
     result = finite_json(result)       # standard JSON: an infinite PSNR (identical) is null
-    write_json(out_dir / "metrics.json", result)
+    # both files or neither (a failed write of one keeps the other out too)
+    with atomic_paths(out_dir / "diff.png", out_dir / "metrics.json") as (png, js):
+        write_png_to(png, heatmap(de), out_dir / "diff.png")
+        js.write_text(json_text(result), encoding="utf-8")
     return result

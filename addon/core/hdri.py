@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from .files import atomic_path
+from .files import atomic_path, public
 
 
 def oiio():
@@ -40,13 +40,15 @@ def read_hdri(path, repair: bool = False):
 
     Raises UserError when the file is missing or unreadable, not floating point, has fewer
     than 3 channels or is not 2:1 equirectangular."""
-    path = Path(path)
-    if not path.is_file():
-        raise UserError(f"HDRI not found: {path} (give an existing equirectangular .exr or .hdr file)")
+    from .paths import input_file
+    path = input_file(path, "HDRI", missing=f"HDRI not found: {path} (give an existing "
+                      "equirectangular .exr or .hdr file)")       # the one path gate
     st = path.stat()
     pixels, count = _decode(str(path), st.st_size, st.st_mtime_ns)
     if count and not repair:
-        raise UserError(f"HDRI holds {count} NaN/Inf pixel(s): {path}; repair the image first")
+        raise UserError(f"HDRI holds {count} NaN/Inf pixel(s): {path}; no job uses such an "
+                        "image (a render would carry them): repair it first, e.g. oiiotool "
+                        "IN --fixnan black -o OUT")
     return pixels, count
 
 
@@ -132,11 +134,11 @@ def write_float_exr(path: Path, pixels: np.ndarray) -> None:
     with atomic_path(path) as tmp:
         out = OIIO.ImageOutput.create(str(tmp))
         if out is None or not out.open(str(tmp), spec):
-            raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+            raise UserError(f"cannot write {public(path)}: {OIIO.geterror().strip()}")
         ok = out.write_image(pixels)
         out.close()
         if not ok:
-            raise UserError(f"cannot write {path}: {OIIO.geterror().strip()}")
+            raise UserError(f"cannot write {public(path)}: {OIIO.geterror().strip()}")
 
 
 def uniform_world(colour) -> Path:

@@ -399,9 +399,9 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
     if folder is not None:
         _report(progress, 1.0, f"cached: {folder}")
         return folder
-    pixels, repaired = read_hdri(hdri_path, repair=True)      # validates before any write
-    if repaired and warn is not None:
-        warn(f"{hdri_path} holds {repaired} NaN/Inf pixel(s); they were set to 0 for the bake")
+    # validates before any write; NaN/Inf texels are refused, as by every job (one rule,
+    # docs/bad-input.md: the render reads the same file and would carry them)
+    pixels, repaired = read_hdri(hdri_path)
     dfg = {}
     tables = tables_folder()
     for g in G_MODELS:

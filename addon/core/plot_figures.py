@@ -3,7 +3,13 @@ brdf_plot.assemble: the slices as float EXRs and PNGs (log scale, labelled axes,
 the lobes and the directional albedo as SVG, PNG (both drawn by core/figures.py) and CSV, a
 composite plot.png for the add-on's Image Editor, and plot.json with the parameters and axes.
 Every file of a plot is written under a temporary name and renamed when all are whole
-(files.atomic_paths)."""
+(files.atomic_paths).
+
+plot.json is also the manifest of what the plot wrote: each file's content hash
+("sha256"). A later plot into the same folder removes an earlier one's files that it does not
+write again only when the file still has the hash that plot recorded; a plot.json ctlab did
+not write, or a file changed since, is left alone with a warning (ctlab deletes only what it
+wrote)."""
 
 from __future__ import annotations
 
@@ -101,9 +107,32 @@ def plot_data(settings, results: dict, files: list) -> dict:
     }
 
 
-def write_plot(out: Path, settings, results: dict, extra: dict | None = None) -> dict:
+def planned_names(settings) -> set:
+    """The names of the files a plot with these settings writes, known before any render
+    (so a folder standing where one goes is refused first; write_plot checks it agrees)."""
+    tags = [tag for tag, _, _ in settings.variants() if tag]
+    slices = [slice_name()] + [slice_name(v) for v in settings.views] + \
+        [slice_name(tag=t) for t in tags]
+    return ({f"{n}.exr" for n in slices} | {f"{n}.png" for n in slices}
+            | {slice_name(tag=f"diff_{t}") + ".png" for t in tags}
+            | {"lobe.svg", "albedo.svg", "lobe.csv", "albedo.csv", "lobe.png", "albedo.png",
+               "plot.png", "plot.json"})
+
+
+def refuse_blocked(out: Path, names) -> None:
+    """A folder (or anything not a file) where the plot writes a file is refused."""
+    out = Path(out)
+    blocked = sorted(n for n in names if (out / n).exists() and not (out / n).is_file())
+    if blocked:
+        raise UserError(f"{out} holds a folder named {blocked[0]}, where the plot writes a "
+                        "file; choose another --out")
+
+
+def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
+               warn=None) -> dict:
     """Every file of the plot, written together (whole or not at all); returns plot.json's
-    data (with ``extra``, e.g. the Blender version, under "renderer")."""
+    data (with ``extra``, e.g. the Blender version, under "renderer"). ``warn(message)``:
+    an earlier plot's file that is left alone (not verifiably ctlab's)."""
     _check_finite(results)
     out = Path(out)
     tags = [t for t in results if t != "labels"]
@@ -124,11 +153,8 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
     if extra:
         data["renderer"] = extra
     paths = [out / n for n in names]
-    blocked = [p.name for p in paths if p.exists() and not p.is_file()]
-    if blocked:
-        raise UserError(f"{out} holds a folder named {blocked[0]}, where the plot writes a "
-                        "file; choose another --out")
-    earlier = _earlier_files(out)
+    refuse_blocked(out, names)
+    earlier, unverified = _earlier_files(out, set(names))
     with atomic_paths(*paths) as staged:      # renamed in order: plot.json, the index, last
         where = dict(zip(names, staged))
         for n, values in exrs.items():
@@ -137,18 +163,49 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None) ->
             where[n].write_text(text, encoding="utf-8")
         for n, canvas in pngs.items():
             canvas.save_png(where[n])
+        data["sha256"] = {n: _digest(where[n]) for n in names if n != "plot.json"}
         where["plot.json"].write_text(json_text(data), encoding="utf-8")
-    for name in earlier - set(names):         # an earlier plot's variants and views
+    for name in earlier:                      # an earlier plot's variants and views
         (out / name).unlink(missing_ok=True)
+    if unverified and warn is not None:
+        warn(f"{len(unverified)} file(s) an earlier plot.json in {out} lists were left alone "
+             f"(not verifiably written by ctlab: {', '.join(sorted(unverified)[:3])})")
     return data
 
 
-def _earlier_files(out: Path) -> set:
-    """The files an earlier plot in ``out`` wrote (its plot.json's list; plain names only)."""
+def _digest(path: Path) -> str:
+    import hashlib
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _earlier_files(out: Path, keep: set) -> tuple:
+    """The files an earlier plot in ``out`` wrote and this one does not write again, as two
+    sets: those that still hold the content hash its plot.json recorded (safe to remove),
+    and those listed without a matching hash (left alone: a plot.json ctlab did not write, or
+    edited, or a file changed since). Plain names of regular files only."""
     import json
+    import os
+    import stat
     try:
-        files = json.loads((out / "plot.json").read_text(encoding="utf-8"))["files"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return set()
-    return {f for f in files if isinstance(f, str) and f == Path(f).name
-            and (out / f).is_file()}
+        data = json.loads((out / "plot.json").read_text(encoding="utf-8"))
+        files, hashes = data["files"], data.get("sha256", {})
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return set(), set()
+    if not isinstance(files, list) or not isinstance(hashes, dict):
+        return set(), set()
+    ours, others = set(), set()
+    for f in files:
+        if not isinstance(f, str) or f != Path(f).name or f in (".", "..") or f in keep:
+            continue
+        try:
+            if not stat.S_ISREG(os.lstat(out / f).st_mode):
+                continue
+        except OSError:
+            continue
+        recorded = hashes.get(f)
+        (ours if isinstance(recorded, str) and recorded == _digest(out / f) else others).add(f)
+    return ours, others

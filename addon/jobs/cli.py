@@ -30,6 +30,7 @@ from pathlib import Path
 from . import pipeline
 from ..blender.renderer import ENGINES
 from ..core.errors import Cancelled, UserError
+from ..core.paths import ascii_float, ascii_int, clean, input_file, safe_name
 from ..core.model import (DEFAULT_ALBEDO, DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IBL_MODES,
                           IMPLEMENTATIONS, LIGHT_TRANSPORTS, MATRIX_ALBEDO, SHADERS, UNITS,
                           VIEWS, ModelOptions, indirect_light)
@@ -67,22 +68,15 @@ def join_negative_values(argv: list, value_flags) -> list:
 
 
 def check_path(text: str, what: str) -> Path:
-    """A path the user typed: not empty, not longer than the system allows."""
-    if not text or not text.strip():
-        raise UserError(f"empty {what}; give a folder or file name")
-    limit = os.pathconf("/", "PC_PATH_MAX") if hasattr(os, "pathconf") else 4096
-    name_limit = os.pathconf("/", "PC_NAME_MAX") if hasattr(os, "pathconf") else 255
-    if len(os.fsencode(text)) >= limit or \
-            any(len(os.fsencode(p)) > name_limit for p in Path(text).parts):
-        raise UserError(f"{what} is longer than this system allows: {text[:60]}...")
-    if "\0" in text:
-        raise UserError(f"{what} holds a NUL character: {text!r}")
-    return Path(text)
+    """A path the user typed, through the one path gate (core.paths.clean: absolute,
+    normalised, no form Blender reads otherwise, within the byte limits; --out keeps room
+    for the names written below it)."""
+    return clean(text, what, output=what == "--out")
 
 
 def parse_vector(text: str, n: int, what: str) -> tuple:
     try:
-        values = tuple(float(x) for x in text.split(","))
+        values = tuple(ascii_float(x) for x in text.split(","))
     except ValueError:
         values = ()
     if len(values) != n or not all(math.isfinite(v) for v in values):
@@ -90,9 +84,12 @@ def parse_vector(text: str, n: int, what: str) -> tuple:
     return values
 
 
+_DIGITS = re.compile(r"[0-9]+", re.ASCII)      # str.isdigit also takes '²', int() does not
+
+
 def parse_grid(text: str) -> tuple:
     parts = text.lower().split("x")
-    if len(parts) != 2 or not all(p.isdigit() for p in parts):
+    if len(parts) != 2 or not all(_DIGITS.fullmatch(p) for p in parts):
         raise UserError(f"malformed grid {text!r}; give ROWSxCOLS, e.g. 7x7")
     return int(parts[0]), int(parts[1])
 
@@ -130,7 +127,7 @@ def _cancel_requested() -> bool:
 
 def events() -> pipeline.Events:
     return pipeline.Events(progress=_progress, note=lambda m: say(f"  {m}"),
-                           cancelled=_cancel_requested)
+                           cancelled=_cancel_requested, warn=warn)
 
 
 # ---------------------------------------------------------------------------------------
@@ -193,7 +190,8 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
         if a.flag_only:
             p.add_argument(a.flag, dest=a.dest, action="store_true", help=a.help)
         else:
-            p.add_argument(a.flag, dest=a.dest, type=a.type, default=a.default,
+            p.add_argument(a.flag, dest=a.dest, default=a.default,
+                           type={int: ascii_int, float: ascii_float}.get(a.type, a.type),
                            choices=a.choices, help=a.help)
 
 
@@ -251,7 +249,9 @@ def settings_from(args, shader: str, view: str) -> MatrixSettings:
                          units=args.units, energy=args.energy, ibl=ibl, env_samples=args.env_samples,
                          env_visibility=args.env_visibility, seed=args.seed,
                          light_transport=args.light_transport)
-    s = MatrixSettings(rows=rows, cols=cols, hdri=args.hdri, hdri_strength=args.hdri_strength,
+    hdri = str(input_file(args.hdri, "HDRI", missing=f"HDRI not found: {args.hdri} (give an "
+                          "existing equirectangular .exr or .hdr file)")) if args.hdri else ""
+    s = MatrixSettings(rows=rows, cols=cols, hdri=hdri, hdri_strength=args.hdri_strength,
                        hdri_rotation=math.radians(args.hdri_rotation),
                        sun_to_light=parse_vector(args.sun_dir, 3, "sun direction"),
                        sun_strength=args.sun_strength,
@@ -267,7 +267,7 @@ def lights_from(args) -> dict:
     if not args.lights:
         return {}
     from ..core.lights import read_lights
-    path = check_path(args.lights, "--lights")
+    path = input_file(args.lights, "--lights", missing=f"lights file {args.lights} not found")
     return {"lights": tuple(read_lights(path)), "lights_file": str(path)}
 
 
@@ -326,11 +326,11 @@ def job_inputs(args) -> tuple:
     if not args.parity:
         return "matrix", base, {}
     if base.lights:         # one run under the lights, with --hdri or the first parity HDRI
-        hdris = [Path(args.hdri)] if args.hdri else \
+        hdris = [Path(base.hdri)] if args.hdri else \
             pipeline.parity_hdris(args.parity_hdris)[:1]
-        name = Path(base.lights_file).stem
+        name = safe_name(Path(base.lights_file).stem, "lights")   # never "..": stays in --out
     else:
-        hdris = [Path(args.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
+        hdris = [Path(base.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
         name = None
     return "parity", base, {"hdris": hdris, "name": name}
 
@@ -445,7 +445,8 @@ def cmd_scene(args) -> None:
     conversions (or, with --convert, its Principled materials against Cook-Torrance ones);
     jobs/scene_job.py."""
     from .scene_job import SceneJob, run_scene
-    blend = check_path(args.blend, ".blend file")
+    blend = input_file(args.blend, ".blend file", missing=f"no such file: {args.blend}; give "
+                       "a .blend file")
     out = check_path(args.out, "--out")
     job = SceneJob(blend=blend, out=out, convert=args.convert,
                    light_transport=args.light_transport, shader=args.shader,
@@ -532,8 +533,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plot", help="the BRDF plotted from the model's own code: the "
                                     "theta_h x theta_d slice, lobes and directional albedo")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--metallic", type=float, default=0.0, help="0 to 1 (default 0)")
-    p.add_argument("--smoothness", type=float, default=0.5, help="0 to 1 (default 0.5)")
+    p.add_argument("--metallic", type=ascii_float, default=0.0, help="0 to 1 (default 0)")
+    p.add_argument("--smoothness", type=ascii_float, default=0.5, help="0 to 1 (default 0.5)")
     p.add_argument("--albedo", default=",".join(map(str, DEFAULT_ALBEDO)),
                    help="R,G,B linear albedo, each 0 to 1 (default %(default)s)")
     p.add_argument("--g", dest="g_model", default=G_MODELS[0], help="|".join(G_MODELS))
@@ -575,12 +576,12 @@ def build_parser() -> argparse.ArgumentParser:
                    default=None, choices=("auto", "GGX", "MULTI_GGX"),
                    help="the conversions' GGX (default auto: GGX, the model's single "
                         "scattering; MULTI_GGX for energy compensated)")
-    s.add_argument("--size", type=int, default=256,
+    s.add_argument("--size", type=ascii_int, default=256,
                    help="the longer image side in pixels (the camera's aspect is kept; "
                         "default %(default)s)")
-    s.add_argument("--samples", type=int, default=64,
+    s.add_argument("--samples", type=ascii_int, default=64,
                    help="samples per pixel, both renders (default %(default)s)")
-    s.add_argument("--seed", type=int, default=0, help="the renders' seed (default 0)")
+    s.add_argument("--seed", type=ascii_int, default=0, help="the renders' seed (default 0)")
     s.add_argument("--camera", default=None, help="a camera object (default: the scene's)")
     s.add_argument("--verbose", action="store_true", help="show Blender's own output")
     s.set_defaults(func=cmd_scene)
@@ -610,7 +611,8 @@ def main(argv_=None) -> int:
             fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
         args.func(args)
     except UserError as exc:
-        print(f"ctlab: error: {exc}", file=sys.stderr, flush=True)
+        one_line = " ".join(str(exc).split())          # a library's message may hold newlines
+        print(f"ctlab: error: {one_line}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
     except (Cancelled, KeyboardInterrupt):
         print("ctlab: cancelled; finished outputs are kept", file=sys.stderr, flush=True)

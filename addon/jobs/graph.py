@@ -107,6 +107,14 @@ def merge_outputs(job: str, spec: dict) -> tuple:
     return ("report.html",)
 
 
+def plan_merge_outputs(plan: dict) -> list:
+    """The files the merge of a plan writes in the job folder (its report, the comparisons)."""
+    names = list(merge_outputs(plan["job"], plan["spec"]))
+    if plan["job"] == "matrix":
+        names += [f"{c}/diff.png" for c, *_ in pipeline.MATRIX_COMPARISONS]
+    return names
+
+
 def make_plan(job: str, base: MatrixSettings, samples: int, **extra) -> dict:
     """The job's plan: its spec (base settings, samples, the parity HDRIs), a render task
     per folder, and the merge."""
@@ -127,6 +135,11 @@ def write_plan(job_dir: Path, plan: dict, openjd: bool = False, replace: bool = 
     """JOB/plan.json (with ``openjd`` JOB/openjd/template.json, with ``flamenco``
     JOB/flamenco/ctlab-<job>.js). ``replace``: the job
     run in one process takes the folder over, as it always wrote over its renders."""
+    # no input is an output of the job, and none of those is blocked or in the cache
+    for folder, settings in renders_of(plan["job"], plan["spec"]).items():
+        pipeline.refuse_job_outputs(settings, job_dir, [folder])
+    pipeline.refuse_job_outputs(settings_from_dict(plan["spec"]["base"]), job_dir, [],
+                                plan_merge_outputs(plan))
     check_writable(job_dir)
     if replace:
         jobgraph.plan_path(job_dir).unlink(missing_ok=True)

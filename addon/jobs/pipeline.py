@@ -22,7 +22,8 @@ from ..blender import model_node, renderer, scene_builder
 from ..blender.paths import bundled_hdri, resolve_hdri
 from ..core import brdf_plot, energy, ibl_bake
 from ..core.errors import Cancelled
-from ..core.files import check_writable, refuse_overwrite
+from ..core.hdri import load_hdri
+from ..core.files import check_writable, forget_report, refuse_overwrite
 from ..core.model import BAKED_IBL_MODES, G_MODELS
 from ..core.settings import MatrixSettings, with_overrides
 
@@ -37,6 +38,7 @@ class Events:
     progress: Callable = _nothing           # (step, total, message), before each step
     note: Callable = _nothing               # (message), within a step
     cancelled: Callable = lambda: False     # polled between steps
+    warn: Callable = _nothing               # (message), something left alone or repaired
 
     def check(self) -> None:
         if self.cancelled():
@@ -57,9 +59,9 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
     each render. Returns the last scene description. ``pixel_centres``: every view as one
     sample at each pixel centre (no anti-aliasing)."""
     events = events or Events()
-    hdri = resolve_hdri(settings.hdri)
     for out_dir in out_dirs.values():
-        refuse_overwrite([hdri], [Path(out_dir) / name for name in renderer.OUTPUT_FILES])
+        refuse_overwrite(job_inputs(settings), [Path(out_dir) / name
+                                                for name in renderer.OUTPUT_FILES], [out_dir])
         check_writable(out_dir)
     files = scene_builder.environment_files(settings, events.bake_progress)
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -81,6 +83,21 @@ def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
         if on_view:
             on_view(i, view, description)
     return description
+
+
+def job_inputs(settings: MatrixSettings) -> list:
+    """The files a render reads that a user gave (its HDRI, its lights file)."""
+    return [resolve_hdri(settings.hdri), settings.lights_file or None]
+
+
+def refuse_job_outputs(settings: MatrixSettings, out: Path, folders, names=()) -> None:
+    """Before a job's first render: its inputs are none of the files it will write in its
+    render folders (and ``names`` in ``out``), and none of those is blocked or in the cache
+    (core.paths.check_job)."""
+    out = Path(out)
+    refuse_overwrite(job_inputs(settings),
+                     [out / f / n for f in folders for n in renderer.OUTPUT_FILES]
+                     + [out / n for n in names], [out])
 
 
 def render_one(settings: MatrixSettings, out_dir: Path, samples: int, **kw) -> dict:
@@ -143,7 +160,7 @@ def furnace_label(g_model: str, energy_mode: str) -> str:
 def _forget_report(out: Path) -> None:
     """A job writes its report last: remove an earlier run's first, so that a job stopped
     half-way leaves no report showing new images beside old numbers."""
-    (Path(out) / "report.html").unlink(missing_ok=True)
+    forget_report(Path(out) / "report.html")      # only one ctlab wrote (core.files)
 
 
 def matrix_settings(base: MatrixSettings) -> dict:
@@ -265,13 +282,15 @@ def run_plot(settings: brdf_plot.PlotSettings, out: Path, events: Events | None 
     code, written into ``out`` whole (plot_figures.write_plot). Returns plot.json's data."""
     from ..core import plot_figures
     events = events or Events()
+    refuse_overwrite([], [Path(out) / "plot.json"], [out])    # not in the cache
+    plot_figures.refuse_blocked(out, plot_figures.planned_names(settings))   # before renders
     check_writable(out)
     results = evaluate_plot(settings, events, verbose)
     events.check()
     events.note("writing the plots")
     return plot_figures.write_plot(Path(out), settings, results,
                                    {"blender": bpy.app.version_string,
-                                    "implementation": settings.shader})
+                                    "implementation": settings.shader}, events.warn)
 
 
 # ----------------------------------------------------------------------------------------
@@ -282,6 +301,7 @@ def run_bake(hdri: Path, out: Path | None = None, events: Events | None = None,
     """Bake the split-sum files of an HDRI (cached by content hash); with ``out`` copy them
     there. Returns the folder holding them."""
     events = events or Events()
+    load_hdri(hdri)                           # the HDRI checked before --out is made
     if out:
         refuse_overwrite([hdri], [Path(out) / name for name in ibl_bake.file_names()])
         check_writable(out)

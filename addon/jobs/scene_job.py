@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import html
 import json
-import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,10 +35,10 @@ import numpy as np
 from ..blender import convert, light_sync, model_node, osl_shader, renderer
 from ..core.compare import ciede2000, heatmap, metrics, read_image, srgb_to_lab, write_png
 from ..core.errors import UserError
-from ..core.files import atomic_path, check_writable, json_text, refuse_overwrite, write_json, \
-    write_text
-from ..core.model import (DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IMPLEMENTATIONS, LIGHT_TRANSPORTS,
-                          REC709_LUMINANCE, UNITS)
+from ..core.files import atomic_path, check_writable, forget_report, json_text, \
+    refuse_overwrite, write_json, write_text
+from ..core.model import (DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IMPLEMENTATIONS,
+                          LIGHT_TRANSPORTS, REC709_LUMINANCE, UNITS)
 from ..core.report import STYLE
 from .pipeline import Events
 
@@ -503,9 +502,9 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
     out = Path(job.out)
     folders = {"model": out / "model", "principled": out / "principled"}
     refuse_overwrite(inputs, [f / n for f in folders.values() for n in RENDER_FILES]
-                     + [out / n for n in OUTPUT_FILES])
+                     + [out / n for n in OUTPUT_FILES], [out])       # and not in the cache
     check_writable(out)
-    (out / "report.html").unlink(missing_ok=True)     # no old report beside new images
+    forget_report(out / "report.html")     # no old report beside new images; only ctlab's
 
     description = {"blend": str(blend), "scene": scene.name, "camera": camera.name,
                    "width": width, "height": height, "seed": job.seed,

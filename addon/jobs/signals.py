@@ -26,6 +26,8 @@ from ..core.files import live_temporaries
 SIGNALS = {signal.SIGINT, signal.SIGTERM}
 MESSAGE = "ctlab: cancelled; finished outputs are kept\n"
 _watcher = None
+_stderr = 2          # a copy of the process's stderr taken at install: a writer that sends
+                     # fd 2 elsewhere for a moment (renderer.quiet) cannot swallow the line
 
 
 def block() -> None:
@@ -48,7 +50,7 @@ def _cancel() -> None:
         else:
             with contextlib.suppress(OSError):
                 path.unlink()
-    os.write(2, MESSAGE.encode())
+    os.write(_stderr, MESSAGE.encode())
     os._exit(130)
 
 
@@ -59,9 +61,13 @@ def _watch() -> None:
 
 def install() -> None:
     """Cancel on SIGINT and SIGTERM from now on (once per process)."""
-    global _watcher
+    global _watcher, _stderr
     if _watcher is not None:
         return
+    try:
+        _stderr = os.dup(2)
+    except OSError:
+        _stderr = 2
     block()
     _watcher = threading.Thread(target=_watch, name="ctlab-signals", daemon=True)
     _watcher.start()

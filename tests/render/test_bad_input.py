@@ -4,6 +4,7 @@ ERROR report from the operator) and writes nothing. The command line runs in-pro
 
 import re
 import types
+from pathlib import Path
 
 import bpy
 import pytest
@@ -123,6 +124,28 @@ CLI_CASES = {
     "plot-view": (["plot", "--view", "full"], "view 'full' cannot be sliced"),
     "plot-shader": (["plot", "--shader", "principled"], "invalid choice: 'principled'"),
     "plot-out-unwritable": (["plot", "--out", "@FILE/sub"], "output folder not writable"),
+    # the one path gate (core/paths.py; tests/render/test_hardening2.py has the properties)
+    "path-blend-relative": (RENDER + ["--hdri", "//sky.exr"],
+                            "starts with '//', which Blender reads as relative"),
+    "path-backslash": (RENDER + ["--out", "a\\b"], "holds a backslash"),
+    "hdri-name-too-long": (RENDER + ["--hdri", "@LONGNAME"],
+                           "HDRI is longer than this system allows"),
+    "out-too-deep": (RENDER + ["--out", "@DEEP"], "--out is longer than this system allows"),
+    "lights-fifo": (RENDER + ["--lights", "@FIFO"], "is a named pipe (FIFO), not a regular"),
+    "hdri-folder": (RENDER + ["--hdri", "@EMPTY"], "is a folder, not a regular file"),
+    "blend-device": (["scene", "/dev/zero", "--out", "@EMPTY/o"],
+                     "is a device, not a regular file"),
+    "lights-is-output": (RENDER + ["--lights", "@LIGHTS_IN_OUT", "--out", "@OUT_WITH_LIGHTS"],
+                         "is an input of this job"),
+    "out-blocked": (RENDER + ["--out", "@OUT_BLOCKED"],
+                    "is a folder where this job writes a file"),
+    "out-in-cache": (RENDER + ["--out", "@IN_CACHE"], "is inside the cache folder"),
+    "cache-unwritable": (["bake", "@FOREST"], "cache folder not usable"),
+    "grid-unicode-digit": (RENDER[:-2] + ["--grid", "\u00b2x2"], "malformed grid"),
+    "size-unicode-digit": (RENDER[:3] + ["--size", "\u0663\u0662"],
+                           "argument --size: invalid int value"),
+    "hdri-nan": (RENDER + ["--hdri", "@NAN_HDRI"], "HDRI holds 1 NaN/Inf pixel(s)"),
+    "bake-nan": (["bake", "@NAN_HDRI", "--out", "@EMPTY/o"], "HDRI holds 1 NaN/Inf pixel(s)"),
 }
 LIGHTS_FILES = {
     "not-json": '[{"type": "SUN",',
@@ -142,13 +165,15 @@ LIGHTS_FILES = {
     "bright": '[{"type": "POINT", "energy": 1e6, "exposure": 12}]',
 }
 OPERATOR_CASES = ("op-matrix-hdri", "op-bake-hdri", "op-convert-not-principled",
-                  "op-convert-not-model", "op-convert-no-material", "op-comparison-running")
+                  "op-convert-not-model", "op-convert-no-material", "op-comparison-running",
+                  "op-comparison-out-backslash")
 
 
 def test_the_docs_table_and_these_tests_list_the_same_cases():
+    from test_hardening2 import CASES as HARDENING_CASES
     table = (ROOT / "docs" / "bad-input.md").read_text()
     documented = set(re.findall(r"^\| `([a-z0-9-]+)` \|", table, re.M))
-    assert documented == set(CLI_CASES) | set(OPERATOR_CASES)
+    assert documented == set(CLI_CASES) | set(OPERATOR_CASES) | set(HARDENING_CASES)
 
 
 def _argv(case, tmp_path):
@@ -167,6 +192,22 @@ def _argv(case, tmp_path):
         write_float_exr(folder / file, np.ones((32, 64, 3), np.float32))
         subs[name] = str(folder)
         subs["@HDRI_IN_OUT" + ("_BAKE" if "BAKE" in name else "")] = str(folder / file)
+    import os
+    subs["@LONGNAME"] = str(tmp_path / ("\u00e9" * 130 + ".exr"))      # 260 bytes
+    subs["@DEEP"] = str(tmp_path.joinpath(*["d" * 200] * 5))
+    os.mkfifo(tmp_path / "pipe.json")
+    subs["@FIFO"] = str(tmp_path / "pipe.json")
+    (tmp_path / "with-lights").mkdir()
+    (tmp_path / "with-lights" / "scene.json").write_text('[{"type": "POINT", "energy": 1}]')
+    subs["@OUT_WITH_LIGHTS"] = str(tmp_path / "with-lights")
+    subs["@LIGHTS_IN_OUT"] = str(tmp_path / "with-lights" / "scene.json")
+    (tmp_path / "blocked" / "render.png").mkdir(parents=True)
+    subs["@OUT_BLOCKED"] = str(tmp_path / "blocked")
+    subs["@IN_CACHE"] = str(tmp_path / "cache" / "o")
+    nan = np.ones((32, 64, 3), np.float32)
+    nan[1, 2, 0] = np.nan
+    write_float_exr(tmp_path / "nan.exr", nan)
+    subs["@NAN_HDRI"] = str(tmp_path / "nan.exr")
     argv = []
     for a in CLI_CASES[case][0]:
         if a.startswith("@BAD:"):
@@ -179,7 +220,10 @@ def _argv(case, tmp_path):
             a = str(tmp_path / "no-such-lights.json")
         elif a.startswith("@RENDER:"):
             a = str(fake_render(tmp_path / f"render-{a[8:]}-{len(argv)}", a[8:]))
-        argv.append(subs.get(a, a.replace("@FILE", str(blocker))))
+        for key in ("@EMPTY", "@FILE"):
+            if a.startswith(key + "/"):
+                a = subs.get(key, str(blocker)) + a[len(key):]
+        argv.append(subs.get(a, a))
     if argv[0] in ("render", "matrix", "plot") and "--out" not in argv:
         argv += ["--out", str(tmp_path / "out")]
     if argv[0] == "compare":
@@ -192,6 +236,16 @@ def test_command_line_bad_input(case, tmp_path, capsys, monkeypatch):
     argv, blocker = _argv(case, tmp_path)
     cache = tmp_path / "cache"
     monkeypatch.setenv("CTLAB_CACHE", str(blocker / "cache" if case == "cache-unusable" else cache))
+    if case == "cache-unwritable":               # exists, not writable (root: a system folder)
+        from addon.core.files import probe_writable
+        cache.mkdir()
+        cache.chmod(0o555)
+        if probe_writable(cache) is not None:
+            monkeypatch.setenv("CTLAB_CACHE", str(cache))
+        elif Path("/sys/kernel").is_dir() and probe_writable(Path("/sys/kernel")):
+            monkeypatch.setenv("CTLAB_CACHE", "/sys/kernel")
+        else:
+            pytest.skip("no unwritable folder here")
     inputs = {p for p in tmp_path.rglob("*")}
     assert cli.main(argv) == cli.EXIT_BAD_INPUT
     err = capsys.readouterr().err.strip().splitlines()
@@ -227,7 +281,8 @@ def test_operator_bad_input(case, addon, tmp_path, monkeypatch):
                "op-convert-not-principled": "its surface is not a Principled BSDF",
                "op-convert-not-model": "does not use the Cook-Torrance model",
                "op-convert-no-material": "no material to convert",
-               "op-comparison-running": "a comparison is already running"}[case]
+               "op-comparison-running": "a comparison is already running",
+               "op-comparison-out-backslash": "holds a backslash, which Blender reads"}[case]
     cache = tmp_path / "cache"
     monkeypatch.setenv("CTLAB_CACHE", str(cache))
     if case == "op-convert-not-principled":
@@ -247,7 +302,9 @@ def test_operator_bad_input(case, addon, tmp_path, monkeypatch):
             "op-convert-not-model": lambda: bpy.ops.ctlab.convert_to_principled(),
             "op-convert-no-material": lambda: bpy.ops.ctlab.convert_to_cook_torrance(),
             "op-comparison-running": lambda: bpy.ops.ctlab.render_comparison(
-                directory=str(tmp_path / "out"))}[case]
+                directory=str(tmp_path / "out")),
+            "op-comparison-out-backslash": lambda: bpy.ops.ctlab.render_comparison(
+                directory=str(tmp_path / "out") + "\\sub")}[case]
     with pytest.raises(RuntimeError, match=re.escape(message)):
         call()
     assert _snapshot() == before                     # the scene and materials as they were

@@ -204,7 +204,8 @@ def test_a_rerun_removes_the_old_report_first(tmp_path, monkeypatch):
     that stops half-way never leaves a report of old numbers beside new images."""
     out = tmp_path / "m"
     out.mkdir()
-    (out / "report.html").write_text("<p>an old run</p>")
+    (out / "report.html").write_text("<!DOCTYPE html><html><head><title>Cook-Torrance Lab: "
+                                     "sphere matrix report</title></head>an old run</html>")
     from addon.jobs import pipeline
 
     def stop_at_the_first_render(*args, **kw):
@@ -213,3 +214,7 @@ def test_a_rerun_removes_the_old_report_first(tmp_path, monkeypatch):
     assert cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1",
                      "--out", str(out)]) == cli.EXIT_CANCELLED
     assert not (out / "report.html").exists()
+    (out / "report.html").write_text("<p>a user's own page</p>")     # not ctlab's: kept
+    assert cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1",
+                     "--out", str(out)]) == cli.EXIT_CANCELLED
+    assert (out / "report.html").read_text() == "<p>a user's own page</p>"

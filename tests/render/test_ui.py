@@ -457,8 +457,12 @@ def test_render_comparison_in_the_background(addon, tmp_path):
     from addon.core.compare import read_image
     assert read_image(out / "cook_torrance" / "render.exr").shape == (32, 32, 3)
     assert not (out / "report.html").exists()
-    leftovers = [p.name for p in out.rglob("*") if "partial" in p.name or p.name.startswith(".")]
+    # nothing half-written; the task graph's markers (.tasks/) record the renders that
+    # finished, so a rerun resumes (docs/usage.md, "Batch jobs as task graphs")
+    leftovers = [p.name for p in out.rglob("*") if "partial" in p.name or
+                 (p.name.startswith(".") and p.name != ".tasks")]
     assert not leftovers, leftovers
+    assert all(m.suffix == ".json" for m in (out / ".tasks").iterdir())
 
     with pytest.raises(RuntimeError, match="output folder not writable"):
         bpy.ops.ctlab.render_comparison(directory="/proc/ctlab", **kw)

@@ -13,6 +13,7 @@ from mathutils import Vector
 from ...blender import light_sync
 from ...blender.drivers import world_nodes
 from ...core.errors import UserError
+from ...core.paths import clean
 from ...core.settings import MAX_GRID
 from .. import preferences
 from ..properties import DIFFUSE_ITEMS, ENERGY_ITEMS, G_ITEMS, TRANSPORT_ITEMS
@@ -68,6 +69,7 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
             values["sun_strength"] = sun.data.energy
         argv = job_argv("matrix", "--out", out, **values)
         try:
+            clean(str(out), "output folder", output=True)    # the one path gate, first
             check_writable(out)
             if hdri:
                 from ...core.hdri import load_hdri
@@ -149,6 +151,7 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
                                     str(Path(default_comparison_folder()).parent / "scene"))
         out = Path(bpy.path.abspath(folder))
         try:
+            clean(str(out), "output folder", output=True)    # the one path gate, first
             check_writable(out)
         except UserError as exc:
             self.report({'ERROR'}, str(exc))

@@ -9,6 +9,7 @@ from bpy.props import BoolProperty, StringProperty
 
 from ...blender import model_node
 from ...core.errors import UserError
+from ...core.paths import clean
 from .common import _active_material
 from .jobs import JOBS, PLOT_IMAGE, _start_tick
 
@@ -73,6 +74,7 @@ class CTLAB_OT_brdf_plot(bpy.types.Operator):
         node = model_node.find(_active_material(context))
         out = Path(bpy.path.abspath(self.directory or default_plot_folder()))
         try:
+            clean(str(out), "output folder", output=True)    # the one path gate, first
             check_writable(out)
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
