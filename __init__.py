@@ -8,9 +8,11 @@ the tests below it, and the unit tier (tests/unit) runs without bpy."""
 
 def register():
     from .addon.ui.register import register as register_addon
+
     register_addon()
 
 
 def unregister():
     from .addon.ui.register import unregister as unregister_addon
+
     unregister_addon()

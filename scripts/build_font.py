@@ -33,15 +33,19 @@ bpy.utils.expose_bundled_modules()
 from addon.core.files import DATA_DIR, atomic_path  # noqa: E402
 from addon.core.hdri import oiio  # noqa: E402
 
-SIZES = (11, 13, 16, 20)                           # pixels per em
-CHARS = ("".join(map(chr, range(32, 127)))        # printable ASCII, then for the figures:
-         + "θφαπ°·×−≤≥Δ²³⁻¹ₕₔ"                  # angles, units, 10⁻³, θₕ
-         + "βγλμρσω±≈∞–—…→⁰⁴⁵⁶⁷⁸⁹⁺₀₁₂ₒᵢ")        # a few more Greek letters, signs, indices
-NOT_A_CHAR = "\U0010fffd"                          # surely absent: the font's .notdef glyph
+SIZES = (11, 13, 16, 20)  # pixels per em
+CHARS = (
+    "".join(map(chr, range(32, 127)))  # printable ASCII, then for the figures:
+    + "θφαπ°·×−≤≥Δ²³⁻¹ₕₔ"  # angles, units, 10⁻³, θₕ
+    + "βγλμρσω±≈∞–—…→⁰⁴⁵⁶⁷⁸⁹⁺₀₁₂ₒᵢ"
+)  # a few more Greek letters, signs, indices
+NOT_A_CHAR = "\U0010fffd"  # surely absent: the font's .notdef glyph
 ATLAS_WIDTH = 256
-SOURCE = ("Inter by Rasmus Andersson (Copyright (c) 2016 The Inter Project Authors, "
-          "https://rsms.me/inter), SIL Open Font License 1.1 (https://openfontlicense.org); "
-          "rasterised from Blender's datafiles/fonts/Inter.woff2 by scripts/build_font.py")
+SOURCE = (
+    "Inter by Rasmus Andersson (Copyright (c) 2016 The Inter Project Authors, "
+    "https://rsms.me/inter), SIL Open Font License 1.1 (https://openfontlicense.org); "
+    "rasterised from Blender's datafiles/fonts/Inter.woff2 by scripts/build_font.py"
+)
 
 
 def render_cells(fid, size, chars, tmpdir):
@@ -53,13 +57,13 @@ def render_cells(fid, size, chars, tmpdir):
         blf.size(fid, size)
         blf.color(fid, 1, 1, 1, 1)
         for i, c in enumerate(chars):
-            blf.position(fid, i * cell + size, size, 0)      # y from the bottom
+            blf.position(fid, i * cell + size, size, 0)  # y from the bottom
             blf.draw_buffer(fid, c)
     path = os.path.join(tmpdir, f"cells{size}.png")
     imbuf.write(ib, filepath=path)
     OIIO = oiio()
     strip = OIIO.ImageBuf(path).get_pixels(OIIO.UINT8)[:, :, 3]
-    return {c: strip[:, i * cell:(i + 1) * cell] for i, c in enumerate(chars)}
+    return {c: strip[:, i * cell : (i + 1) * cell] for i, c in enumerate(chars)}
 
 
 def advance(fid, c) -> int:
@@ -71,10 +75,12 @@ def advance(fid, c) -> int:
 
 def main() -> None:
     if not hasattr(blf, "NO_FALLBACK") or not hasattr(blf, "bind_imbuf"):
-        sys.exit(f"Blender {bpy.app.version_string}'s blf cannot draw one font alone into an "
-                 "image; run this with Blender 5.2's bpy (.venv-bpy5.2/bin/python)")
+        sys.exit(
+            f"Blender {bpy.app.version_string}'s blf cannot draw one font alone into an "
+            "image; run this with Blender 5.2's bpy (.venv-bpy5.2/bin/python)"
+        )
     fid = blf.load(os.path.join(bpy.utils.system_resource("DATAFILES"), "fonts", "Inter.woff2"))
-    blf.enable(fid, blf.NO_FALLBACK)                 # Inter's glyphs only, no substitutes
+    blf.enable(fid, blf.NO_FALLBACK)  # Inter's glyphs only, no substitutes
     crops, meta, missing = [], {}, set()
     with tempfile.TemporaryDirectory() as tmpdir:
         for size in SIZES:
@@ -108,24 +114,30 @@ def main() -> None:
     atlas = np.zeros((y + shelf, ATLAS_WIDTH), np.uint8)
     for size, c, cov in crops:
         gx, gy = meta[size][c][:2]
-        atlas[gy:gy + cov.shape[0], gx:gx + cov.shape[1]] = cov
+        atlas[gy : gy + cov.shape[0], gx : gx + cov.shape[1]] = cov
 
     sizes = {}
     for size in SIZES:
         g = meta[size]
         sizes[str(size)] = {
-            "cap_height": g["H"][5], "x_height": g["x"][5],
+            "cap_height": g["H"][5],
+            "x_height": g["x"][5],
             "descent": max(g[c][3] - g[c][5] for c in "gjpqy"),
-            "glyphs": g}
-    write_outputs(atlas, {
-        "source": SOURCE,
-        "built_with": f"Blender {bpy.app.version_string}",
-        "atlas": "font_atlas.png",
-        "glyph": "[x, y, w, h, left, top, advance]: the coverage cell in the atlas (pixels); "
-                 "its left edge from the pen, its top row above the baseline, the pen's "
-                 "advance",
-        "missing": sorted(missing),
-        "sizes": sizes})
+            "glyphs": g,
+        }
+    write_outputs(
+        atlas,
+        {
+            "source": SOURCE,
+            "built_with": f"Blender {bpy.app.version_string}",
+            "atlas": "font_atlas.png",
+            "glyph": "[x, y, w, h, left, top, advance]: the coverage cell in the atlas (pixels); "
+            "its left edge from the pen, its top row above the baseline, the pen's "
+            "advance",
+            "missing": sorted(missing),
+            "sizes": sizes,
+        },
+    )
 
 
 def write_outputs(atlas: np.ndarray, data: dict) -> None:
@@ -141,15 +153,23 @@ def write_outputs(atlas: np.ndarray, data: dict) -> None:
             raise RuntimeError(f"cannot write {png}: {buf.geterror()}")
     lines = []
     for size, m in data["sizes"].items():
-        rows = ",\n".join(f"        {json.dumps(c, ensure_ascii=False)}: {json.dumps(v)}"
-                          for c, v in m["glyphs"].items())
-        lines.append(f'    "{size}": {{\n'
-                     f'      "cap_height": {m["cap_height"]}, "x_height": {m["x_height"]}, '
-                     f'"descent": {m["descent"]},\n'
-                     f'      "glyphs": {{\n{rows}\n      }}\n    }}')
+        rows = ",\n".join(
+            f"        {json.dumps(c, ensure_ascii=False)}: {json.dumps(v)}"
+            for c, v in m["glyphs"].items()
+        )
+        lines.append(
+            f'    "{size}": {{\n'
+            f'      "cap_height": {m["cap_height"]}, "x_height": {m["x_height"]}, '
+            f'"descent": {m["descent"]},\n'
+            f'      "glyphs": {{\n{rows}\n      }}\n    }}'
+        )
     head = {k: v for k, v in data.items() if k != "sizes"}
-    text = json.dumps(head, indent=2, ensure_ascii=False)[:-2] + \
-        ',\n  "sizes": {\n' + ",\n".join(lines) + "\n  }\n}\n"
+    text = (
+        json.dumps(head, indent=2, ensure_ascii=False)[:-2]
+        + ',\n  "sizes": {\n'
+        + ",\n".join(lines)
+        + "\n  }\n}\n"
+    )
     assert json.loads(text) == json.loads(json.dumps(data))
     with atomic_path(DATA_DIR / "font_atlas.json") as tmp:
         tmp.write_text(text, encoding="utf-8")

@@ -26,8 +26,10 @@ from addon.core.model import G_MODELS  # noqa: E402
 def main() -> None:
     DATA_DIR.mkdir(parents=True, exist_ok=True)
     for g in G_MODELS:
-        for name, table in ((f"dfg_{g}", ibl_bake.dfg_table), (f"dominant_{g}",
-                                                                ibl_bake.dominant_table)):
+        for name, table in (
+            (f"dfg_{g}", ibl_bake.dfg_table),
+            (f"dominant_{g}", ibl_bake.dominant_table),
+        ):
             buf = io.BytesIO()
             np.save(buf, table(g))
             with atomic_path(DATA_DIR / f"{name}.npy") as tmp:

@@ -1,7 +1,7 @@
 """Cook-Torrance Lab command line.
 
-    python scripts/ctlab.py render --shader osl --out DIR [...]   (bpy as a Python module)
-    blender -b -P scripts/ctlab.py -- render --shader osl --out DIR [...]
+python scripts/ctlab.py render --shader osl --out DIR [...]   (bpy as a Python module)
+blender -b -P scripts/ctlab.py -- render --shader osl --out DIR [...]
 """
 
 import os
@@ -23,7 +23,7 @@ from addon.jobs.cli import main  # noqa: E402  (the Blender layer exposes its bu
 
 if __name__ == "__main__":
     signals.install()
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
     code = main(argv)
     if bpy.app.background and not bpy.app.binary_path.endswith("python"):
         sys.stdout.flush()

@@ -25,8 +25,9 @@ from addon.core.model import ModelOptions  # noqa: E402
 
 def render(scene, out: Path, shader: str, samples: int):
     renderer.configure(scene, shader, "full", samples, path_traced=True)
-    renderer.render(scene, out, {"width": scene.render.resolution_x,
-                                 "height": scene.render.resolution_y})
+    renderer.render(
+        scene, out, {"width": scene.render.resolution_x, "height": scene.render.resolution_y}
+    )
     return compare.read_image(out / "render.exr"), compare.read_image(out / "render.png")
 
 
@@ -44,10 +45,13 @@ def main():
             demo_scene.set_material(sphere, demo_scene.principled_for(demo_scene.METAL))
             _, ref = render(scene, tmp / "principled", "principled", args.samples)
             mat = materials.model_material(
-                "Cook-Torrance", "osl", ModelOptions(light_transport="scene",
-                                                     g_model="smith_ggx_correlated",
-                                                     diffuse_model="lambert"),
-                **demo_scene.METAL)
+                "Cook-Torrance",
+                "osl",
+                ModelOptions(
+                    light_transport="scene", g_model="smith_ggx_correlated", diffuse_model="lambert"
+                ),
+                **demo_scene.METAL,
+            )
             demo_scene.set_material(sphere, mat)
             light_sync.sync_material(mat, scene)
             _, path = render(scene, tmp / "scene", "osl", args.samples)
@@ -56,8 +60,10 @@ def main():
         mask = demo_scene.sphere_mask(scene, sphere, ref.shape[:2])
         for label, img in (("scene", path), ("lab", lab)):
             de = compare.ciede2000(compare.srgb_to_lab(ref), compare.srgb_to_lab(img))
-            print(f"{world}: {label} vs Principled, mean CIEDE2000 over the sphere "
-                  f"{de[mask].mean():.2f}")
+            print(
+                f"{world}: {label} vs Principled, mean CIEDE2000 over the sphere "
+                f"{de[mask].mean():.2f}"
+            )
         gap = np.ones((h, 4, 3), dtype=np.float32)
         compare.write_png(ROOT / "docs" / name, np.concatenate([path, gap, ref, gap, lab], 1))
         print(f"wrote docs/{name}")

@@ -13,6 +13,7 @@ from addon.core.hdri import write_float_exr
 def addon():
     """The add-on registered in a factory-startup scene (the default cube, light, camera)."""
     from addon.ui import register
+
     bpy.ops.wm.read_factory_settings(use_empty=False)
     register.register()
     yield

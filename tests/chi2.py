@@ -28,17 +28,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-Z_RES, PHI_RES = 64, 128          # cells: cos(theta) x phi
-SUB_PHI = 8                       # evaluation points per cell in phi
-EVAL_ROWS, EVAL_COLS = 1024, PHI_RES * SUB_PHI    # the evaluation image (one render)
-THETA_STEPS = 7 * 128             # evaluation rows: equal steps of theta, 7 per tile row of
-                                  # the environment tables (env_importance.TILE_ROWS = 128)
+Z_RES, PHI_RES = 64, 128  # cells: cos(theta) x phi
+SUB_PHI = 8  # evaluation points per cell in phi
+EVAL_ROWS, EVAL_COLS = 1024, PHI_RES * SUB_PHI  # the evaluation image (one render)
+THETA_STEPS = 7 * 128  # evaluation rows: equal steps of theta, 7 per tile row of
+# the environment tables (env_importance.TILE_ROWS = 128)
 MIN_EXPECTED = 5.0
 SIGNIFICANCE = 0.01
 
 
 # ---------------------------------------------------------------------------------------
 # The chi-square distribution
+
 
 def gammaincc(a: float, x: float) -> float:
     """Q(a, x) = Gamma(a, x) / Gamma(a), a > 0, x >= 0 (Numerical Recipes, gammq)."""
@@ -98,10 +99,11 @@ def sidak(n_tests: int, significance: float = SIGNIFICANCE) -> float:
 # ---------------------------------------------------------------------------------------
 # Cells and evaluation points
 
+
 def uniform(rng: np.random.Generator, shape) -> np.ndarray:
     """Uniform float32 numbers in [0, 1), exactly representable (multiples of 2^-24): none
     rounds up to 1."""
-    return (np.floor(rng.random(shape) * 2.0 ** 24) / 2.0 ** 24).astype(np.float32)
+    return (np.floor(rng.random(shape) * 2.0**24) / 2.0**24).astype(np.float32)
 
 
 def cell_of(dirs: np.ndarray) -> np.ndarray:
@@ -129,20 +131,22 @@ def _row_layout():
     theta too (at any rotation about Z): their density, constant over a tile, integrates
     exactly in theta."""
     z_edges = np.linspace(-1.0, 1.0, Z_RES + 1)
-    cell_edges = np.arccos(z_edges)[::-1]              # increasing theta: z from +1 to -1
+    cell_edges = np.arccos(z_edges)[::-1]  # increasing theta: z from +1 to -1
     steps = np.linspace(0.0, np.pi, THETA_STEPS + 1)
     edges = np.unique(np.concatenate([steps, cell_edges]))
-    edges = edges[np.concatenate([[True], np.diff(edges) > 1e-12])]   # one of near-equal edges
+    edges = edges[np.concatenate([[True], np.diff(edges) > 1e-12])]  # one of near-equal edges
     lo, hi = edges[:-1], edges[1:]
     theta = 0.5 * (lo + hi)
     cell = np.clip(Z_RES - np.searchsorted(cell_edges, theta), 0, Z_RES - 1)  # 0 at z = -1
     w = np.sin(theta) * (hi - lo)
-    w *= (2.0 / Z_RES) / np.bincount(cell, weights=w, minlength=Z_RES)[cell]   # sums to dz
+    w *= (2.0 / Z_RES) / np.bincount(cell, weights=w, minlength=Z_RES)[cell]  # sums to dz
     pad = EVAL_ROWS - len(theta)
     assert pad >= 0, "more evaluation rows than the image has"
-    return (np.concatenate([cell, np.zeros(pad, int)]),
-            np.concatenate([theta, np.full(pad, np.pi / 2)]),   # (any direction: weight 0)
-            np.concatenate([w, np.zeros(pad)]))
+    return (
+        np.concatenate([cell, np.zeros(pad, int)]),
+        np.concatenate([theta, np.full(pad, np.pi / 2)]),  # (any direction: weight 0)
+        np.concatenate([w, np.zeros(pad)]),
+    )
 
 
 def evaluation_directions():
@@ -152,9 +156,14 @@ def evaluation_directions():
     4 pi / (Z_RES PHI_RES), so that a constant integrates exactly."""
     _, theta, w_theta = _row_layout()
     phi = -np.pi + (np.arange(EVAL_COLS) + 0.5) * (2 * np.pi / EVAL_COLS)
-    dirs = np.stack([np.sin(theta)[:, None] * np.cos(phi)[None, :],
-                     np.sin(theta)[:, None] * np.sin(phi)[None, :],
-                     np.cos(theta)[:, None] * np.ones_like(phi)[None, :]], axis=-1)
+    dirs = np.stack(
+        [
+            np.sin(theta)[:, None] * np.cos(phi)[None, :],
+            np.sin(theta)[:, None] * np.sin(phi)[None, :],
+            np.cos(theta)[:, None] * np.ones_like(phi)[None, :],
+        ],
+        axis=-1,
+    )
     weights = w_theta[:, None] * np.full(EVAL_COLS, 2 * np.pi / EVAL_COLS)[None, :]
     return dirs.astype(np.float32), weights
 
@@ -174,6 +183,7 @@ def integrate(pdf: np.ndarray, weights: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 # The test
 
+
 @dataclass
 class Chi2Result:
     stat: float
@@ -181,10 +191,10 @@ class Chi2Result:
     p_value: float
     n_samples: int
     n_valid: int
-    integral: float                # the density's integral over the sphere
+    integral: float  # the density's integral over the sphere
     pooled_cells: int
-    zero_cells_hit: int            # samples in cells whose expected count is 0
-    worst: str                     # the cells that add most to the statistic
+    zero_cells_hit: int  # samples in cells whose expected count is 0
+    worst: str  # the cells that add most to the statistic
 
     @property
     def valid_fraction(self) -> float:
@@ -196,11 +206,13 @@ class Chi2Result:
         return math.sqrt(f * (1.0 - f) / self.n_samples)
 
     def __str__(self):
-        return (f"chi2 = {self.stat:.1f}, dof = {self.dof}, p = {self.p_value:.4g}; "
-                f"valid {self.valid_fraction:.5f} (+- {self.valid_stderr:.1g}) of "
-                f"{self.n_samples}, pdf integral {self.integral:.5f}; "
-                f"{self.pooled_cells} cells pooled, {self.zero_cells_hit} samples in "
-                f"cells expected 0; largest terms: {self.worst}")
+        return (
+            f"chi2 = {self.stat:.1f}, dof = {self.dof}, p = {self.p_value:.4g}; "
+            f"valid {self.valid_fraction:.5f} (+- {self.valid_stderr:.1g}) of "
+            f"{self.n_samples}, pdf integral {self.integral:.5f}; "
+            f"{self.pooled_cells} cells pooled, {self.zero_cells_hit} samples in "
+            f"cells expected 0; largest terms: {self.worst}"
+        )
 
 
 def _cell_name(c: int) -> str:
@@ -237,18 +249,26 @@ def chi2_test(observed: np.ndarray, expected: np.ndarray, n_samples: int) -> Chi
         stat += (pool_obs - pool_exp) ** 2 / pool_exp
         dof += 1
     elif pool_obs > 0:
-        stat = math.inf                       # samples where no density was claimed
+        stat = math.inf  # samples where no density was claimed
     dof -= 1
     worst = np.argsort(terms)[::-1][:3]
     worst_text = ", ".join(
         f"{_cell_name(order[n_pool + t])} {obs[n_pool + t]:.0f} vs {exp[n_pool + t]:.1f}"
-        for t in worst)
+        for t in worst
+    )
     zero_hit = int(obs[exp == 0].sum())
     if zero_hit > ZERO_HIT_FRACTION * n_samples:
-        stat = math.inf                       # samples where the density claims none (Mitsuba
-        worst_text = f"{zero_hit} samples in cells of density 0; " + worst_text   # fails these)
+        stat = math.inf  # samples where the density claims none (Mitsuba
+        worst_text = f"{zero_hit} samples in cells of density 0; " + worst_text  # fails these)
     p = chi2_sf(stat, dof) if math.isfinite(stat) and dof > 0 else 0.0
-    return Chi2Result(stat=stat, dof=dof, p_value=p, n_samples=int(n_samples),
-                      n_valid=int(np.asarray(observed).sum()),
-                      integral=float(np.asarray(expected).sum() / n_samples),
-                      pooled_cells=n_pool, zero_cells_hit=zero_hit, worst=worst_text)
+    return Chi2Result(
+        stat=stat,
+        dof=dof,
+        p_value=p,
+        n_samples=int(n_samples),
+        n_valid=int(np.asarray(observed).sum()),
+        integral=float(np.asarray(expected).sum() / n_samples),
+        pooled_cells=n_pool,
+        zero_cells_hit=zero_hit,
+        worst=worst_text,
+    )

@@ -10,22 +10,44 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96,
-           pixel_centres=False, engine="cycles", **kw):
+def render(
+    out_dir,
+    shader="osl",
+    view="full",
+    samples=16,
+    grid=(3, 3),
+    size=96,
+    pixel_centres=False,
+    engine="cycles",
+    **kw,
+):
     """Render the sphere matrix with the real pipeline; returns (linear image, scene dict).
     With a tuple of views: ({view: image}, scene), the scene built and compiled once."""
     from addon.core import compare
     from addon.core.model import ModelOptions
     from addon.core.settings import MatrixSettings
     from addon.jobs import pipeline
-    model_keys = ("g_model", "diffuse_model", "units", "energy", "ibl", "env_samples",
-                  "env_visibility", "sun_shadow", "seed", "light_transport")
+
+    model_keys = (
+        "g_model",
+        "diffuse_model",
+        "units",
+        "energy",
+        "ibl",
+        "env_samples",
+        "env_visibility",
+        "sun_shadow",
+        "seed",
+        "light_transport",
+    )
     views = view if isinstance(view, tuple) else (view,)
     model = ModelOptions(view=views[0], **{k: kw.pop(k) for k in model_keys if k in kw})
-    s = MatrixSettings(rows=grid[0], cols=grid[1], width=size, height=size, shader=shader,
-                       model=model, **kw)
-    dirs = {v: Path(out_dir) / v for v in views} if isinstance(view, tuple) else \
-        {view: Path(out_dir)}
+    s = MatrixSettings(
+        rows=grid[0], cols=grid[1], width=size, height=size, shader=shader, model=model, **kw
+    )
+    dirs = (
+        {v: Path(out_dir) / v for v in views} if isinstance(view, tuple) else {view: Path(out_dir)}
+    )
     pipeline.render_views(s, dirs, samples, pixel_centres=pixel_centres, engine=engine)
     images = {v: compare.read_image(d / "render.exr") for v, d in dirs.items()}
     scene = json.loads((next(iter(dirs.values())) / "scene.json").read_text())
@@ -35,13 +57,16 @@ def render(out_dir, shader="osl", view="full", samples=16, grid=(3, 3), size=96,
 def sphere_pixels(scene, cell, margin_px=1.0):
     """Boolean mask of the pixels whose centres lie inside the sphere (minus a margin)."""
     from addon.core import compare
-    return compare.cell_mask((scene["height"], scene["width"]),
-                             cell, 1.0 - margin_px / cell["radius_px"])
+
+    return compare.cell_mask(
+        (scene["height"], scene["width"]), cell, 1.0 - margin_px / cell["radius_px"]
+    )
 
 
 def bad_images(tmp_path):
     """Bad HDRIs, keyed by the words their error message must contain."""
     from addon.core.hdri import oiio, write_float_exr
+
     OIIO = oiio()
     png = tmp_path / "ldr.png"
     buf = OIIO.ImageBuf(OIIO.ImageSpec(64, 32, 3, OIIO.UINT8))
@@ -51,15 +76,21 @@ def bad_images(tmp_path):
     square = tmp_path / "square.exr"
     write_float_exr(square, np.ones((32, 32, 3), dtype=np.float32))
     good = tmp_path / "good.exr"
-    write_float_exr(good, np.ones((256, 512, 3), dtype=np.float32)
-                    * np.linspace(0, 1, 512)[None, :, None])
+    write_float_exr(
+        good, np.ones((256, 512, 3), dtype=np.float32) * np.linspace(0, 1, 512)[None, :, None]
+    )
     corrupt = tmp_path / "corrupt.exr"
     corrupt.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
     garbage = tmp_path / "garbage.exr"
     garbage.write_bytes(b"not an image at all" * 100)
-    return {"not floating point": png, "1 channel": mono, "not 2:1": square,
-            "corrupt or truncated": corrupt, "HDRI unreadable": garbage,
-            "HDRI not found": tmp_path / "missing.exr"}
+    return {
+        "not floating point": png,
+        "1 channel": mono,
+        "not 2:1": square,
+        "corrupt or truncated": corrupt,
+        "HDRI unreadable": garbage,
+        "HDRI not found": tmp_path / "missing.exr",
+    }
 
 
 def fake_render(folder, variant="good", size=32):
@@ -69,6 +100,7 @@ def fake_render(folder, variant="good", size=32):
     import numpy as np
     from addon.core.compare import write_png
     from addon.core.hdri import write_float_exr
+
     folder.mkdir(parents=True)
     img = np.full((size, size, 3), 0.5, np.float32)
     if variant == "nan":
@@ -78,9 +110,20 @@ def fake_render(folder, variant="good", size=32):
     if variant == "truncated":
         data = (folder / "render.exr").read_bytes()
         (folder / "render.exr").write_bytes(data[: len(data) // 2])
-    scene = {"width": size, "height": size, "cells": [
-        {"row": 0, "col": 0, "metallic": 0.0, "smoothness": 1.0, "center_px": [16, 16],
-         "radius_px": 10.0}]}
+    scene = {
+        "width": size,
+        "height": size,
+        "cells": [
+            {
+                "row": 0,
+                "col": 0,
+                "metallic": 0.0,
+                "smoothness": 1.0,
+                "center_px": [16, 16],
+                "radius_px": 10.0,
+            }
+        ],
+    }
     text = {"badjson": "{not json", "schema": "{}"}.get(variant, json.dumps(scene))
     (folder / "scene.json").write_text(text)
     return folder

@@ -28,6 +28,7 @@ def expose_bundled_modules() -> None:
 def bundled_module(name: str):
     """Import one of Blender's bundled Python bindings (OpenImageIO, oslquery)."""
     import importlib
+
     try:
         return importlib.import_module(name)
     except ImportError:
@@ -35,8 +36,10 @@ def bundled_module(name: str):
     try:
         return importlib.import_module(name)
     except ImportError:
-        raise UserError(f"this Blender ({bpy.app.version_string}) has no bundled {name} Python "
-                        "module, which Cook-Torrance Lab needs; use Blender 4.5 or newer") from None
+        raise UserError(
+            f"this Blender ({bpy.app.version_string}) has no bundled {name} Python "
+            "module, which Cook-Torrance Lab needs; use Blender 4.5 or newer"
+        ) from None
 
 
 def eevee_engine_id() -> str:

@@ -15,7 +15,7 @@ from . import light_sync, model_node
 from ..core.errors import UserError
 from ..core.model import OPTION_VALUES
 
-INVERT_TAG = "ctlab_one_minus"          # the Math node: smoothness = 1 - roughness (or back)
+INVERT_TAG = "ctlab_one_minus"  # the Math node: smoothness = 1 - roughness (or back)
 SAVED_EMISSION_SAMPLING = "ctlab_saved_emission_sampling"
 
 # Principled inputs the model has no counterpart for: (input, label, its neutral value).
@@ -77,45 +77,55 @@ def _invert_link(tree, dst: bpy.types.NodeSocket, src: bpy.types.NodeSocket, lab
     tree.links.new(_one_minus(tree, source, location, label), dst)
 
 
-def principled_to_model(mat: bpy.types.Material, scene: bpy.types.Scene, impl: str,
-                        light_transport: str = "scene") -> list:
+def principled_to_model(
+    mat: bpy.types.Material, scene: bpy.types.Scene, impl: str, light_transport: str = "scene"
+) -> list:
     """Replace the material's Principled BSDF by the Cook-Torrance node; returns notes on
     what could not be mapped. Raises UserError when the surface is not a Principled BSDF.
     The material is path traced as Principled was (the scene transport) unless
     ``light_transport`` says "lab"."""
     bsdf = surface_principled(mat)
     if bsdf is None:
-        raise UserError(f"material {mat.name!r}: its surface is not a Principled BSDF; "
-                        "nothing to convert")
+        raise UserError(
+            f"material {mat.name!r}: its surface is not a Principled BSDF; nothing to convert"
+        )
     tree = mat.node_tree
     notes = []
     for name, label, neutral in PRINCIPLED_UNMAPPED:
         sock = bsdf.inputs.get(name)
         if sock is None:
             continue
-        if name == "Emission Strength" and not _differs(
-                tuple(bsdf.inputs["Emission Color"].default_value), (0.0, 0.0, 0.0, 1.0)) \
-                and not bsdf.inputs["Emission Color"].is_linked:
+        if (
+            name == "Emission Strength"
+            and not _differs(
+                tuple(bsdf.inputs["Emission Color"].default_value), (0.0, 0.0, 0.0, 1.0)
+            )
+            and not bsdf.inputs["Emission Color"].is_linked
+        ):
             continue
-        if sock.is_linked or _differs(tuple(sock.default_value) if isinstance(neutral, tuple)
-                                      else sock.default_value, neutral):
+        if sock.is_linked or _differs(
+            tuple(sock.default_value) if isinstance(neutral, tuple) else sock.default_value, neutral
+        ):
             notes.append(label)
     if bsdf.distribution != 'MULTI_GGX':
         notes.append(f"distribution {bsdf.distribution}")
     node = model_node.new_node(tree, impl)
     node.location = bsdf.location
-    model_node.carry_input(tree, bsdf.inputs["Base Color"],
-                           model_node.surface_input(node, "albedo"))
-    model_node.carry_input(tree, bsdf.inputs["Metallic"],
-                           model_node.surface_input(node, "metallic"))
+    model_node.carry_input(
+        tree, bsdf.inputs["Base Color"], model_node.surface_input(node, "albedo")
+    )
+    model_node.carry_input(
+        tree, bsdf.inputs["Metallic"], model_node.surface_input(node, "metallic")
+    )
     rough, smooth = bsdf.inputs["Roughness"], model_node.surface_input(node, "smoothness")
     if rough.is_linked:
         _invert_link(tree, smooth, rough, "Smoothness = 1 - Roughness")
     else:
         smooth.default_value = 1.0 - rough.default_value
     if bsdf.inputs["Normal"].is_linked:
-        tree.links.new(bsdf.inputs["Normal"].links[0].from_socket,
-                       model_node.surface_input(node, "normal"))
+        tree.links.new(
+            bsdf.inputs["Normal"].links[0].from_socket, model_node.surface_input(node, "normal")
+        )
     for link in list(bsdf.outputs["BSDF"].links):
         tree.links.new(model_node.shader_output(node), link.to_socket)
     tree.nodes.remove(bsdf)
@@ -136,19 +146,24 @@ def model_to_principled(mat: bpy.types.Material) -> list:
     1.5); returns notes on the model settings Principled has no counterpart for."""
     node = model_node.find(mat)
     if node is None:
-        raise UserError(f"material {mat.name!r} does not use the Cook-Torrance model; "
-                        "nothing to convert")
+        raise UserError(
+            f"material {mat.name!r} does not use the Cook-Torrance model; nothing to convert"
+        )
     tree = mat.node_tree
-    notes = [f"{key.replace('_', ' ')} {model_node.get_option(node, key)}"
-             for key in ("view", "g_model", "diffuse_model", "units")
-             if model_node.get_option(node, key) != OPTION_VALUES[key][0]]
+    notes = [
+        f"{key.replace('_', ' ')} {model_node.get_option(node, key)}"
+        for key in ("view", "g_model", "diffuse_model", "units")
+        if model_node.get_option(node, key) != OPTION_VALUES[key][0]
+    ]
     bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.location = node.location
     bsdf.distribution = 'MULTI_GGX'
-    model_node.carry_input(tree, model_node.surface_input(node, "albedo"),
-                           bsdf.inputs["Base Color"])
-    model_node.carry_input(tree, model_node.surface_input(node, "metallic"),
-                           bsdf.inputs["Metallic"])
+    model_node.carry_input(
+        tree, model_node.surface_input(node, "albedo"), bsdf.inputs["Base Color"]
+    )
+    model_node.carry_input(
+        tree, model_node.surface_input(node, "metallic"), bsdf.inputs["Metallic"]
+    )
     smooth = model_node.surface_input(node, "smoothness")
     if smooth.is_linked:
         _invert_link(tree, bsdf.inputs["Roughness"], smooth, "Roughness = 1 - Smoothness")
@@ -159,7 +174,7 @@ def model_to_principled(mat: bpy.types.Material) -> list:
         source = normal.links[0].from_socket
         if source.node.bl_idname == "ShaderNodeNewGeometry":
             if all(len(o.links) <= 1 for o in source.node.outputs):
-                tree.nodes.remove(source.node)     # ours: the OSL node's geometry normal
+                tree.nodes.remove(source.node)  # ours: the OSL node's geometry normal
         else:
             tree.links.new(source, bsdf.inputs["Normal"])
     for link in list(model_node.shader_output(node).links):

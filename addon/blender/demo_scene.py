@@ -32,8 +32,9 @@ def principled(name: str, colour, roughness=0.5, metallic=0.0, distribution="GGX
 
 def principled_for(values: dict, name="Reference", distribution="GGX"):
     """Principled BSDF for the model's values (Roughness = 1 - smoothness)."""
-    return principled(name, values["albedo"], 1.0 - values["smoothness"], values["metallic"],
-                      distribution)
+    return principled(
+        name, values["albedo"], 1.0 - values["smoothness"], values["metallic"], distribution
+    )
 
 
 def _emitter(name: str, strength: float):
@@ -61,6 +62,7 @@ def _mesh_object(name: str, mesh: bpy.types.Mesh, mat, location, rotation=(0, 0,
 
 def _mesh(name: str, build) -> bpy.types.Mesh:
     import bmesh
+
     bm = bmesh.new()
     build(bm)
     mesh = bpy.data.meshes.new(name)
@@ -73,6 +75,7 @@ def build(world: str = "hdri", width: int = 96, height: int = 72):
     """The scene in a new empty file: ``world`` "hdri" (Blender's forest.exr) or "sky" (a
     Sky Texture). Returns (scene, sphere, second sphere); the spheres have no material yet."""
     import bmesh
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     w = bpy.data.worlds.new("World")
@@ -89,14 +92,25 @@ def build(world: str = "hdri", width: int = 96, height: int = 72):
         nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
         bg.inputs["Strength"].default_value = 0.3
     scene.world = w
-    _mesh_object("Floor", _mesh("Floor", lambda bm: bmesh.ops.create_grid(
-        bm, x_segments=1, y_segments=1, size=6.0)), principled("Grey", (0.5, 0.5, 0.5)),
-        (0, 0, 0))
-    _mesh_object("Cube", _mesh("Cube", lambda bm: bmesh.ops.create_cube(bm, size=1.0)),
-                 principled("Red", (0.8, 0.05, 0.05)), (1.15, 0.2, 0.5))
-    _mesh_object("Panel", _mesh("Panel", lambda bm: bmesh.ops.create_grid(
-        bm, x_segments=1, y_segments=1, size=0.3)), _emitter("Glow", 6.0),
-        (-1.3, -0.2, 1.0), (0.0, math.radians(70), 0.0))
+    _mesh_object(
+        "Floor",
+        _mesh("Floor", lambda bm: bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=6.0)),
+        principled("Grey", (0.5, 0.5, 0.5)),
+        (0, 0, 0),
+    )
+    _mesh_object(
+        "Cube",
+        _mesh("Cube", lambda bm: bmesh.ops.create_cube(bm, size=1.0)),
+        principled("Red", (0.8, 0.05, 0.05)),
+        (1.15, 0.2, 0.5),
+    )
+    _mesh_object(
+        "Panel",
+        _mesh("Panel", lambda bm: bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=0.3)),
+        _emitter("Glow", 6.0),
+        (-1.3, -0.2, 1.0),
+        (0.0, math.radians(70), 0.0),
+    )
     light = bpy.data.lights.new("Area", 'AREA')
     light.energy, light.size = 150.0, 1.0
     obj = bpy.data.objects.new("Area", light)
@@ -105,6 +119,7 @@ def build(world: str = "hdri", width: int = 96, height: int = 72):
 
     def sphere(bm):
         bmesh.ops.create_uvsphere(bm, u_segments=96, v_segments=48, radius=SPHERE_RADIUS)
+
     spheres = []
     for name, x in (("Sphere", 0.0), ("Second Sphere", -1.45)):
         mesh = _mesh(name, sphere)
@@ -135,6 +150,7 @@ def sphere_mask(scene, sphere, shape, fraction=0.85) -> np.ndarray:
     """The pixels inside the sphere's image: a conservative disc around its projected centre
     (angular radius asin(r/d) through the camera's focal length, times ``fraction``)."""
     from bpy_extras.object_utils import world_to_camera_view
+
     cam = scene.camera
     c = world_to_camera_view(scene, cam, sphere.location)
     d = (sphere.location - cam.location).length
@@ -143,4 +159,4 @@ def sphere_mask(scene, sphere, shape, fraction=0.85) -> np.ndarray:
     r_px = f_px * math.tan(math.asin(SPHERE_RADIUS / d)) * fraction
     yy, xx = np.mgrid[0:h, 0:w]
     cx, cy = c.x * w, (1.0 - c.y) * h
-    return (xx + 0.5 - cx) ** 2 + (yy + 0.5 - cy) ** 2 <= r_px ** 2
+    return (xx + 0.5 - cx) ** 2 + (yy + 0.5 - cy) ** 2 <= r_px**2

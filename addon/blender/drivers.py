@@ -37,7 +37,7 @@ def _driver(tree, path, index, expression, variables):
     for name, id_type, ident, data_path in variables:
         var = drv.variables.new()
         var.name = name
-        if id_type == 'TRANSFORMS':              # data_path: ROT_W, LOC_X, SCALE_X, ...
+        if id_type == 'TRANSFORMS':  # data_path: ROT_W, LOC_X, SCALE_X, ...
             var.type = 'TRANSFORMS'
             target = var.targets[0]
             target.id = ident
@@ -49,7 +49,7 @@ def _driver(tree, path, index, expression, variables):
         var.targets[0].id_type = id_type
         var.targets[0].id = ident
         var.targets[0].data_path = data_path
-    drv.expression = expression          # simple expressions: evaluated without Python
+    drv.expression = expression  # simple expressions: evaluated without Python
     return fcurve
 
 
@@ -89,6 +89,7 @@ class WorldLighting(NamedTuple):
     it); None when the strength is inside the image (HDRI Strength is then 1).
     mapping: for "image", the Mapping node whose Z rotation drives HDRI Rotation; otherwise
     None (a baked world's rotation is inside the bake: HDRI Rotation is then 0)."""
+
     kind: str
     background: object = None
     mapping: object = None
@@ -117,18 +118,25 @@ def _plain_mapping(mapping) -> bool:
     if any(s.is_linked for s in mapping.inputs if s.name != "Vector"):
         return False
     loc, rot, scale = (mapping.inputs[k].default_value for k in ("Location", "Rotation", "Scale"))
-    if any(abs(c) > 0 for c in loc) or rot[0] != 0 or rot[1] != 0 or \
-            any(c != 1 for c in scale):
+    if any(abs(c) > 0 for c in loc) or rot[0] != 0 or rot[1] != 0 or any(c != 1 for c in scale):
         return False
     coords, out = _source(mapping.inputs["Vector"])
-    return coords is not None and coords.bl_idname == "ShaderNodeTexCoord" and \
-        not coords.mute and out.identifier == "Generated"
+    return (
+        coords is not None
+        and coords.bl_idname == "ShaderNodeTexCoord"
+        and not coords.mute
+        and out.identifier == "Generated"
+    )
 
 
 def _direct_image(env) -> bool:
-    return env.bl_idname == "ShaderNodeTexEnvironment" and not env.mute and \
-        env.image is not None and env.image.source == 'FILE' and \
-        env.projection == 'EQUIRECTANGULAR'
+    return (
+        env.bl_idname == "ShaderNodeTexEnvironment"
+        and not env.mute
+        and env.image is not None
+        and env.image.source == 'FILE'
+        and env.projection == 'EQUIRECTANGULAR'
+    )
 
 
 def world_lighting(world: bpy.types.World | None) -> WorldLighting:
@@ -144,7 +152,7 @@ def world_lighting(world: bpy.types.World | None) -> WorldLighting:
         return WorldLighting("colour")
     shader, _ = _source(output.inputs["Surface"])
     if shader is None:
-        return WorldLighting("colour")          # nothing reaches the output: black
+        return WorldLighting("colour")  # nothing reaches the output: black
     if shader.bl_idname != "ShaderNodeBackground" or shader.mute:
         return WorldLighting("baked")
     background = None if shader.inputs["Strength"].is_linked else shader
@@ -154,21 +162,33 @@ def world_lighting(world: bpy.types.World | None) -> WorldLighting:
             return WorldLighting("baked")
         return WorldLighting("colour", background, colour=tuple(colour_socket.default_value[:3]))
     env, out = _source(colour_socket)
-    if background is not None and env is not None and _direct_image(env) and \
-            out.identifier == "Color":
+    if (
+        background is not None
+        and env is not None
+        and _direct_image(env)
+        and out.identifier == "Color"
+    ):
         vec, vec_out = _source(env.inputs["Vector"])
         if not env.inputs["Vector"].is_linked:
             return WorldLighting("image", background, None, env)
-        if vec is not None and vec.bl_idname == "ShaderNodeTexCoord" and not vec.mute and \
-                vec_out.identifier == "Generated":
+        if (
+            vec is not None
+            and vec.bl_idname == "ShaderNodeTexCoord"
+            and not vec.mute
+            and vec_out.identifier == "Generated"
+        ):
             return WorldLighting("image", background, None, env)
         if vec is not None and vec.bl_idname == "ShaderNodeMapping" and _plain_mapping(vec):
             return WorldLighting("image", background, vec, env)
     return WorldLighting("baked", background)
 
 
-def add_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, sun: bpy.types.Object | None,
-                world: bpy.types.World | None) -> int:
+def add_drivers(
+    tree: bpy.types.NodeTree,
+    node: bpy.types.Node,
+    sun: bpy.types.Object | None,
+    world: bpy.types.World | None,
+) -> int:
     """Drive ``node``'s key-light and world inputs from ``sun`` and ``world``; returns how many
     drivers were added. Inputs without a source keep their values, but the world's: HDRI
     Strength follows the Background node that feeds the World Output (world_lighting), else
@@ -181,33 +201,61 @@ def add_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, sun: bpy.types.O
         if SUN_DIRECTION in names:
             path = _input_path(node, SUN_DIRECTION)
             quat = [(c, 'TRANSFORMS', sun, f"ROT_{c.upper()}") for c in "wxyz"]
-            for i, expr in enumerate(("2 * (x * z + w * y)", "2 * (y * z - w * x)",
-                                      "1 - 2 * (x * x + y * y)")):
+            for i, expr in enumerate(
+                ("2 * (x * z + w * y)", "2 * (y * z - w * x)", "1 - 2 * (x * x + y * y)")
+            ):
                 _driver(tree, path, i, expr, quat)
                 count += 1
         if SUN_IRRADIANCE in names:
             path = _input_path(node, SUN_IRRADIANCE)
             for i in range(3):
-                _driver(tree, path, i, "e * c", [("e", 'LIGHT', sun.data, "energy"),
-                                                  ("c", 'LIGHT', sun.data, f"color[{i}]")])
+                _driver(
+                    tree,
+                    path,
+                    i,
+                    "e * c",
+                    [("e", 'LIGHT', sun.data, "energy"), ("c", 'LIGHT', sun.data, f"color[{i}]")],
+                )
                 count += 1
     lighting = world_lighting(world)
     background, mapping = lighting.background, lighting.mapping
     if HDRI_STRENGTH in names:
         if background is not None:
             index = next(i for i, s in enumerate(background.inputs) if s.name == "Strength")
-            _driver(tree, _input_path(node, HDRI_STRENGTH), None, "s",
-                    [("s", 'WORLD', world,
-                      f'node_tree.nodes["{background.name}"].inputs[{index}].default_value')])
+            _driver(
+                tree,
+                _input_path(node, HDRI_STRENGTH),
+                None,
+                "s",
+                [
+                    (
+                        "s",
+                        'WORLD',
+                        world,
+                        f'node_tree.nodes["{background.name}"].inputs[{index}].default_value',
+                    )
+                ],
+            )
             count += 1
         else:
             node.inputs[HDRI_STRENGTH].default_value = 1.0
     if HDRI_ROTATION in names:
         if mapping is not None:
             index = next(i for i, s in enumerate(mapping.inputs) if s.name == "Rotation")
-            _driver(tree, _input_path(node, HDRI_ROTATION), None, "r",
-                    [("r", 'WORLD', world,
-                      f'node_tree.nodes["{mapping.name}"].inputs[{index}].default_value[2]')])
+            _driver(
+                tree,
+                _input_path(node, HDRI_ROTATION),
+                None,
+                "r",
+                [
+                    (
+                        "r",
+                        'WORLD',
+                        world,
+                        f'node_tree.nodes["{mapping.name}"].inputs[{index}].default_value[2]',
+                    )
+                ],
+            )
             count += 1
         else:
             node.inputs[HDRI_ROTATION].default_value = 0.0
@@ -220,8 +268,9 @@ _Y_AXIS = ("2 * (x * y - w * z)", "1 - 2 * (x * x + z * z)", "2 * (y * z + w * x
 _MINUS_Z_AXIS = ("-2 * (x * z + w * y)", "-2 * (y * z - w * x)", "2 * (x * x + y * y) - 1")
 
 
-def add_light_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, slot: int,
-                      obj: bpy.types.Object) -> int:
+def add_light_drivers(
+    tree: bpy.types.NodeTree, node: bpy.types.Node, slot: int, obj: bpy.types.Object
+) -> int:
     """Drive light slot ``slot``'s inputs from a light object, as core.lights.slot_values
     computes them from a light's properties: its world position, -Z axis, power
     (energy x colour x 2^exposure), radius or angle, spot cone, an Area light's half extents
@@ -243,17 +292,35 @@ def add_light_drivers(tree: bpy.types.NodeTree, node: bpy.types.Node, slot: int,
     for i, c in enumerate("XYZ"):
         drive("position", i, "p", [("p", 'TRANSFORMS', obj, f"LOC_{c}")])
         drive("direction", i, _MINUS_Z_AXIS[i], quat)
-        drive("color", i, "e * c * pow(2, x)",
-              [("e", 'LIGHT', light, "energy"), ("c", 'LIGHT', light, f"color[{i}]"),
-               ("x", 'LIGHT', light, "exposure")])
+        drive(
+            "color",
+            i,
+            "e * c * pow(2, x)",
+            [
+                ("e", 'LIGHT', light, "energy"),
+                ("c", 'LIGHT', light, f"color[{i}]"),
+                ("x", 'LIGHT', light, "exposure"),
+            ],
+        )
     if light.type == 'AREA':
         rect = light.shape in ('RECTANGLE', 'ELLIPSE')
         for i in range(3):
-            drive("axis_x", i, f"({_X_AXIS[i]}) * 0.5 * s * k",
-                  quat + [("s", 'LIGHT', light, "size"), ("k", 'TRANSFORMS', obj, "SCALE_X")])
-            drive("axis_y", i, f"({_Y_AXIS[i]}) * 0.5 * s * k",
-                  quat + [("s", 'LIGHT', light, "size_y" if rect else "size"),
-                          ("k", 'TRANSFORMS', obj, "SCALE_Y")])
+            drive(
+                "axis_x",
+                i,
+                f"({_X_AXIS[i]}) * 0.5 * s * k",
+                quat + [("s", 'LIGHT', light, "size"), ("k", 'TRANSFORMS', obj, "SCALE_X")],
+            )
+            drive(
+                "axis_y",
+                i,
+                f"({_Y_AXIS[i]}) * 0.5 * s * k",
+                quat
+                + [
+                    ("s", 'LIGHT', light, "size_y" if rect else "size"),
+                    ("k", 'TRANSFORMS', obj, "SCALE_Y"),
+                ],
+            )
     elif light.type == 'SUN':
         drive("size", None, "a", [("a", 'LIGHT', light, "angle")])
     else:

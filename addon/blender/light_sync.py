@@ -25,18 +25,29 @@ from ..core.errors import UserError
 from ..core.hdri import load_hdri, uniform_world
 from ..core.model import files_needed
 
-MATRIX_TAG = "ctlab_matrix"       # the matrix builder manages its own material (scene_builder)
+MATRIX_TAG = "ctlab_matrix"  # the matrix builder manages its own material (scene_builder)
 
 
 def key_sun(scene: bpy.types.Scene) -> bpy.types.Object | None:
     """The Sun the model's key light follows: the scene's chosen one (Scene.ctlab_sun), else
     its first Sun light by name that renders, else None (no key light)."""
     chosen = getattr(scene, "ctlab_sun", None)
-    if chosen is not None and chosen.type == 'LIGHT' and chosen.data.type == 'SUN' \
-            and chosen.name in scene.objects and scene_lights.renders(chosen, scene):
+    if (
+        chosen is not None
+        and chosen.type == 'LIGHT'
+        and chosen.data.type == 'SUN'
+        and chosen.name in scene.objects
+        and scene_lights.renders(chosen, scene)
+    ):
         return chosen
-    suns = sorted((o for o in scene.objects if o.type == 'LIGHT' and o.data.type == 'SUN'
-                   and scene_lights.renders(o, scene)), key=lambda o: o.name)
+    suns = sorted(
+        (
+            o
+            for o in scene.objects
+            if o.type == 'LIGHT' and o.data.type == 'SUN' and scene_lights.renders(o, scene)
+        ),
+        key=lambda o: o.name,
+    )
     return suns[0] if suns else None
 
 
@@ -80,7 +91,7 @@ def _world_state(world) -> tuple:
     if lighting.kind == "baked":
         try:
             return ("baked", world_bake.signature(world, content=False))
-        except UserError as exc:           # a missing image: sync, which reports it
+        except UserError as exc:  # a missing image: sync, which reports it
             return ("baked", str(exc))
     return (lighting.kind, lighting.colour)
 
@@ -98,7 +109,7 @@ class Environment:
     def hdri(self):
         if self._hdri is None:
             path = environment_file(self.scene)
-            load_hdri(path)                  # a clear error for a bad image, once
+            load_hdri(path)  # a clear error for a bad image, once
             self._hdri = path
         return self._hdri
 
@@ -115,22 +126,33 @@ class Environment:
         return self._bake
 
 
-def update_environment(node: bpy.types.Node, scene: bpy.types.Scene,
-                       env: Environment | None = None) -> None:
+def update_environment(
+    node: bpy.types.Node, scene: bpy.types.Scene, env: Environment | None = None
+) -> None:
     """Point the model node at the scene's HDRI and what its indirect-light mode needs: the
     importance tables (reference) or the split-sum bake (baked modes; baked on demand and
     cached by content). A bad HDRI raises UserError. Pass one ``env`` to every node of a
     sync pass."""
     env = env or Environment(scene)
-    need = files_needed(model_node.implementation(node), model_node.get_option(node, "ibl"),
-                        model_node.get_option(node, "light_transport"))
-    model_node.set_environment(node, env.hdri,
-                               tables=env.tables if "tables" in need else None,
-                               bake=env.bake if "bake" in need else None)
+    need = files_needed(
+        model_node.implementation(node),
+        model_node.get_option(node, "ibl"),
+        model_node.get_option(node, "light_transport"),
+    )
+    model_node.set_environment(
+        node,
+        env.hdri,
+        tables=env.tables if "tables" in need else None,
+        bake=env.bake if "bake" in need else None,
+    )
 
 
-def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=True,
-                  env: Environment | None = None) -> None:
+def sync_material(
+    mat: bpy.types.Material,
+    scene: bpy.types.Scene,
+    environment=True,
+    env: Environment | None = None,
+) -> None:
     """Drive a model material's key light from the key Sun, its light slots from the scene's
     other lights (scene_lights) and its world inputs from the world (replacing earlier
     drivers); with ``environment``, also point it at the HDRI (``env``: the sync pass's shared
@@ -146,7 +168,7 @@ def sync_material(mat: bpy.types.Material, scene: bpy.types.Scene, environment=T
     model_node.remove_drivers(tree, node)
     sun = key_sun(scene)
     model_node.add_drivers(tree, node, sun, scene.world)
-    if sun is None:                    # no Sun: no key light
+    if sun is None:  # no Sun: no key light
         model_node.lighting_input(node, "sun_irradiance").default_value = (0.0, 0.0, 0.0, 1.0)
     used, _unused = scene_lights.scene_lights(scene, exclude=sun)
     scene_lights.sync_slots(tree, node, used)
@@ -160,6 +182,7 @@ def add_residual_pass(scene: bpy.types.Scene) -> None:
     """The view layers' AOV for the OSL shader's residual albedo (model_node.connect_residual),
     so that it shows as a render pass; added once, never removed."""
     from ..core.model import OSL_RESIDUAL
+
     for layer in scene.view_layers:
         if OSL_RESIDUAL not in layer.aovs:
             aov = layer.aovs.add()
@@ -169,27 +192,31 @@ def add_residual_pass(scene: bpy.types.Scene) -> None:
 
 def user_materials():
     """The materials that use the model, but the matrix builder's own."""
-    return [(mat, node) for mat, node in model_node.model_materials()
-            if not mat.get(MATRIX_TAG)]
+    return [(mat, node) for mat, node in model_node.model_materials() if not mat.get(MATRIX_TAG)]
 
 
 def _state(scene) -> tuple:
     world = scene.world
     sun = key_sun(scene)
     used, unused = scene_lights.scene_lights(scene, exclude=sun)
-    return (world.name if world else "", world_hdri_path(scene),
-            _world_state(world), sun.name if sun else "",
-            scene_lights.state(used), len(unused))
+    return (
+        world.name if world else "",
+        world_hdri_path(scene),
+        _world_state(world),
+        sun.name if sun else "",
+        scene_lights.state(used),
+        len(unused),
+    )
 
 
-_seen: dict = {}               # scene name -> the state last synced
-last_error: dict = {}          # scene name -> the last sync error (shown in the panels)
+_seen: dict = {}  # scene name -> the state last synced
+last_error: dict = {}  # scene name -> the last sync error (shown in the panels)
 
 
 @bpy.app.handlers.persistent
 def on_depsgraph_update(scene, depsgraph=None) -> None:
     """Follow a new world, HDRI image or key Sun in every material that uses the model."""
-    if world_bake.busy():              # the world bake's own scene
+    if world_bake.busy():  # the world bake's own scene
         return
     state = _state(scene)
     if _seen.get(scene.name) == state:

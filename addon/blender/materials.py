@@ -35,12 +35,14 @@ def _surface_values(nt, per_object: bool, albedo, metallic, smoothness, albedo_i
     """Sockets (or constants) for albedo, metallic and smoothness."""
     nodes = nt.nodes
     if per_object:
+
         def attr(name, x):
             node = nodes.new("ShaderNodeAttribute")
             node.attribute_type = 'OBJECT'
             node.attribute_name = name
             node.location = (-700, x)
             return node
+
         albedo_out = attr(PROP_ALBEDO, 300).outputs["Color"]
         metallic_out = attr(PROP_METALLIC, 100).outputs["Fac"]
         smooth_out = attr(PROP_SMOOTHNESS, -100).outputs["Fac"]
@@ -62,15 +64,23 @@ def _connect_or_set(nt, value, sock):
         sock.default_value = value
 
 
-def model_material(name="Cook-Torrance", impl="osl", options: ModelOptions | None = None,
-                   lighting: Lighting | None = None, per_object=False, albedo=DEFAULT_ALBEDO,
-                   metallic=0.0, smoothness=0.5, albedo_image=None,
-                   normal_map=None) -> bpy.types.Material:
+def model_material(
+    name="Cook-Torrance",
+    impl="osl",
+    options: ModelOptions | None = None,
+    lighting: Lighting | None = None,
+    per_object=False,
+    albedo=DEFAULT_ALBEDO,
+    metallic=0.0,
+    smoothness=0.5,
+    albedo_image=None,
+    normal_map=None,
+) -> bpy.types.Material:
     """A material whose surface is the model (``impl``: "osl" or "nodes") emitting the chosen
     view, with constant or per-object surface inputs, an optional albedo texture and
     tangent-space normal map, and the given options and lighting."""
     mat = _new_material(name)
-    mat.cycles.emission_sampling = 'NONE'     # a view, not a light: never sample it as a lamp
+    mat.cycles.emission_sampling = 'NONE'  # a view, not a light: never sample it as a lamp
     nt = mat.node_tree
     node = model_node.new_node(nt, impl)
     model_node.connect_output(nt, node)
@@ -90,9 +100,15 @@ def model_material(name="Cook-Torrance", impl="osl", options: ModelOptions | Non
     return mat
 
 
-def principled_material(name="Principled Reference", per_object=False, albedo=DEFAULT_ALBEDO,
-                        metallic=0.0, smoothness=0.5, distribution="MULTI_GGX",
-                        albedo_image=None) -> bpy.types.Material:
+def principled_material(
+    name="Principled Reference",
+    per_object=False,
+    albedo=DEFAULT_ALBEDO,
+    metallic=0.0,
+    smoothness=0.5,
+    distribution="MULTI_GGX",
+    albedo_image=None,
+) -> bpy.types.Material:
     """docs/model.md, "The comparison with Principled BSDF": Base Color = albedo, Metallic =
     metallic, Roughness = 1 - smoothness, IOR 1.5, Specular IOR Level 0.5, Multiscatter GGX."""
     mat = _new_material(name)
@@ -104,12 +120,13 @@ def principled_material(name="Principled Reference", per_object=False, albedo=DE
     nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     bsdf.inputs["IOR"].default_value = 1.5
     bsdf.inputs["Specular IOR Level"].default_value = 0.5
-    albedo_s, metallic_s, smooth_s = _surface_values(nt, per_object, albedo, metallic,
-                                                     smoothness, albedo_image)
+    albedo_s, metallic_s, smooth_s = _surface_values(
+        nt, per_object, albedo, metallic, smoothness, albedo_image
+    )
     _connect_or_set(nt, albedo_s, bsdf.inputs["Base Color"])
     _connect_or_set(nt, metallic_s, bsdf.inputs["Metallic"])
     if isinstance(smooth_s, bpy.types.NodeSocket):
-        invert = nt.nodes.new("ShaderNodeMath")       # roughness = 1 - smoothness
+        invert = nt.nodes.new("ShaderNodeMath")  # roughness = 1 - smoothness
         invert.operation = 'SUBTRACT'
         invert.use_clamp = True
         invert.inputs[0].default_value = 1.0

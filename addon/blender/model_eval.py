@@ -25,8 +25,17 @@ class Evaluator:
     grid whose pixel (i, j) has normal ``n[j, i]`` and direction toward the light
     ``l[j, i]`` (both in the view frame: v = +Z). Builds into the current (empty) scene."""
 
-    def __init__(self, shader: str, n: np.ndarray, l: np.ndarray, albedo, metallic: float,
-                 smoothness: float, options: ModelOptions, verbose: bool = False):
+    def __init__(
+        self,
+        shader: str,
+        n: np.ndarray,
+        l: np.ndarray,
+        albedo,
+        metallic: float,
+        smoothness: float,
+        options: ModelOptions,
+        verbose: bool = False,
+    ):
         self.shader = shader
         self.log = None if verbose else os.devnull
         scene = bpy.context.scene
@@ -35,15 +44,25 @@ class Evaluator:
         # the node group reads the multiple-scattering tables from a bake folder: a
         # uniform world's (cached); the OSL shader reads them from the tables folder
         bake = str(ibl_bake.bake(uniform_world((1.0, 1.0, 1.0)))) if shader == "nodes" else ""
-        mat = materials.model_material(MATERIAL, shader, options, Lighting(ibl_bake=bake),
-                                       albedo=tuple(albedo), metallic=metallic,
-                                       smoothness=smoothness)
+        mat = materials.model_material(
+            MATERIAL,
+            shader,
+            options,
+            Lighting(ibl_bake=bake),
+            albedo=tuple(albedo),
+            metallic=metallic,
+            smoothness=smoothness,
+        )
         tree = mat.node_tree
         self.node = model_node.find(mat)
-        tree.links.new(pixel_grid.image_input(tree, pixel_grid.data_image("ctlab_n", n)),
-                       model_node.surface_input(self.node, "normal"))
-        tree.links.new(pixel_grid.image_input(tree, pixel_grid.data_image("ctlab_l", l)),
-                       model_node.lighting_input(self.node, "sun_to_light"))
+        tree.links.new(
+            pixel_grid.image_input(tree, pixel_grid.data_image("ctlab_n", n)),
+            model_node.surface_input(self.node, "normal"),
+        )
+        tree.links.new(
+            pixel_grid.image_input(tree, pixel_grid.data_image("ctlab_l", l)),
+            model_node.lighting_input(self.node, "sun_to_light"),
+        )
         plane.data.materials.append(mat)
         self.scene = scene
 

@@ -16,9 +16,22 @@ import bpy
 
 from . import drivers, node_group, osl_shader
 from ..core.errors import UserError
-from ..core.model import (BAKED_IBL_MODES, BY_KEY, IMPLEMENTATIONS, LIGHT_FIELDS, LIGHT_SLOTS,
-                          LIGHTING, OPTION_VALUES, OPTIONS, OSL_RESIDUAL, SURFACE, Lighting,
-                          ModelOptions, indirect_light, light_key)
+from ..core.model import (
+    BAKED_IBL_MODES,
+    BY_KEY,
+    IMPLEMENTATIONS,
+    LIGHT_FIELDS,
+    LIGHT_SLOTS,
+    LIGHTING,
+    OPTION_VALUES,
+    OPTIONS,
+    OSL_RESIDUAL,
+    SURFACE,
+    Lighting,
+    ModelOptions,
+    indirect_light,
+    light_key,
+)
 
 NODE_NAME = "Cook-Torrance"
 SURFACE_KEYS = tuple(i.key for i in SURFACE)
@@ -27,7 +40,7 @@ LIGHTING_KEYS = tuple(i.key for i in LIGHTING)
 
 
 def implementation(node: bpy.types.Node) -> str | None:
-    """"osl", "nodes", or None when the node is not the model."""
+    """ "osl", "nodes", or None when the node is not the model."""
     if node.bl_idname == "ShaderNodeScript":
         script = node.script
         if script is not None and script.name.startswith(osl_shader.TEXT_NAME):
@@ -82,6 +95,7 @@ def shader_output(node: bpy.types.Node) -> bpy.types.NodeSocket:
 
 # --- Creating ----------------------------------------------------------------------------
 
+
 def new_node(tree: bpy.types.NodeTree, impl: str) -> bpy.types.Node:
     """A new Cook-Torrance node of the given implementation in ``tree`` (unlinked); the node
     group's indirect light starts as split_sum (it has no reference mode)."""
@@ -93,8 +107,9 @@ def new_node(tree: bpy.types.NodeTree, impl: str) -> bpy.types.Node:
         node.node_tree = node_group.ensure_group()
         node.width = 220
     else:
-        raise UserError(f"unknown implementation {impl!r}; choose one of: "
-                        f"{', '.join(IMPLEMENTATIONS)}")
+        raise UserError(
+            f"unknown implementation {impl!r}; choose one of: {', '.join(IMPLEMENTATIONS)}"
+        )
     node.name = node.label = NODE_NAME
     return node
 
@@ -153,12 +168,13 @@ def link_geometry_normal(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None
 
 # --- The view and the switches ---------------------------------------------------------
 
+
 def get_option(node: bpy.types.Node, key: str) -> str:
     values = OPTION_VALUES[key]
     value = _input(node, key).default_value
     if implementation(node) == "osl":
         return value if value in values else values[0]
-    if key == "ibl":                        # the group's IBL Mode indexes BAKED_IBL_MODES
+    if key == "ibl":  # the group's IBL Mode indexes BAKED_IBL_MODES
         return BAKED_IBL_MODES[min(max(int(value), 0), len(BAKED_IBL_MODES) - 1)]
     return values[min(max(int(value), 0), len(values) - 1)]
 
@@ -168,16 +184,20 @@ def set_option(node: bpy.types.Node, key: str, value: str) -> None:
     is a UserError that says what to choose."""
     values = OPTION_VALUES[key]
     if value not in values:
-        raise UserError(f"unknown {key.replace('_', ' ')} {value!r}; choose one of: "
-                        f"{', '.join(values)}")
+        raise UserError(
+            f"unknown {key.replace('_', ' ')} {value!r}; choose one of: {', '.join(values)}"
+        )
     sock = _input(node, key)
     if implementation(node) == "osl":
         sock.default_value = value
     elif key == "ibl":
         if value not in BAKED_IBL_MODES:
-            raise UserError(f"the node group has no {value!r} indirect light (it cannot "
-                            "integrate an HDRI); use one of: " + ", ".join(BAKED_IBL_MODES)
-                            + ", or switch to the OSL implementation")
+            raise UserError(
+                f"the node group has no {value!r} indirect light (it cannot "
+                "integrate an HDRI); use one of: "
+                + ", ".join(BAKED_IBL_MODES)
+                + ", or switch to the OSL implementation"
+            )
         sock.default_value = BAKED_IBL_MODES.index(value)
     else:
         sock.default_value = values.index(value)
@@ -194,12 +214,12 @@ def set_options(node: bpy.types.Node, options: ModelOptions) -> None:
 
 # --- Lighting --------------------------------------------------------------------------
 
+
 def set_lighting(node: bpy.types.Node, lighting: Lighting) -> None:
     """The key light's and the world's values, then its files (``set_environment``)."""
     for i in LIGHTING:
         value = getattr(lighting, i.key)
-        _input(node, i.key).default_value = tuple(value) + (1.0,) if i.kind == "RGBA" \
-            else value
+        _input(node, i.key).default_value = tuple(value) + (1.0,) if i.kind == "RGBA" else value
     set_lights(node, lighting.lights)
     set_environment(node, lighting.hdri, lighting.env_tables, lighting.ibl_bake)
 
@@ -221,6 +241,7 @@ def set_lights(node: bpy.types.Node, lights) -> None:
     """The slots from a list of core.lights.Light (at most LIGHT_SLOTS, in slot order); the
     slots after them are emptied."""
     from ..core.lights import slot_values
+
     lights = list(lights)
     if len(lights) > LIGHT_SLOTS:
         raise UserError(f"{len(lights)} lights; the model shades at most {LIGHT_SLOTS}")
@@ -229,16 +250,18 @@ def set_lights(node: bpy.types.Node, lights) -> None:
         set_light_slot(node, slot, slot_values(light) if light else None)
 
 
-def set_environment(node: bpy.types.Node, hdri, tables: dict | None = None,
-                    bake=None) -> None:
+def set_environment(node: bpy.types.Node, hdri, tables: dict | None = None, bake=None) -> None:
     """Point the node at the world's HDRI and what is derived from it: the OSL shader at the
     file, its importance tables (reference IBL) and its bake folder (split-sum and Unity IBL);
     the group's textures at the bake. Arguments left None keep what the node has."""
     if implementation(node) == "osl":
-        osl_shader.set_texture_convention(node)          # a file saved by another Blender
+        osl_shader.set_texture_convention(node)  # a file saved by another Blender
         if tables is not None:
-            for key, name in (("env_marginal", "marginal"), ("env_conditional", "conditional"),
-                              ("env_pdf_table", "pdf")):
+            for key, name in (
+                ("env_marginal", "marginal"),
+                ("env_conditional", "conditional"),
+                ("env_pdf_table", "pdf"),
+            ):
                 _input(node, key).default_value = str(tables.get(name, ""))
         osl_shader.set_environment(node, hdri, bake)
     elif bake:
@@ -256,8 +279,10 @@ def remove_drivers(tree, node) -> int:
 
 # --- Changing implementation ----------------------------------------------------------
 
-def carry_input(tree: bpy.types.NodeTree, src: bpy.types.NodeSocket,
-                dst: bpy.types.NodeSocket) -> None:
+
+def carry_input(
+    tree: bpy.types.NodeTree, src: bpy.types.NodeSocket, dst: bpy.types.NodeSocket
+) -> None:
     """Give ``dst`` what feeds ``src``: its link, else its value."""
     if src.is_linked:
         tree.links.new(src.links[0].from_socket, dst)
@@ -266,8 +291,11 @@ def carry_input(tree: bpy.types.NodeTree, src: bpy.types.NodeSocket,
 
 
 def _is_geometry_normal(sock: bpy.types.NodeSocket) -> bool:
-    return sock.bl_idname.startswith("NodeSocketVector") and \
-        sock.node.bl_idname == "ShaderNodeNewGeometry" and sock.name == "Normal"
+    return (
+        sock.bl_idname.startswith("NodeSocketVector")
+        and sock.node.bl_idname == "ShaderNodeNewGeometry"
+        and sock.name == "Normal"
+    )
 
 
 def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bpy.types.Node:
@@ -280,8 +308,9 @@ def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bp
         src, dst = surface_input(old, key), surface_input(new, key)
         if key != "normal":
             carry_input(tree, src, dst)
-        elif src.is_linked and not (impl == "nodes" and
-                                    _is_geometry_normal(src.links[0].from_socket)):
+        elif src.is_linked and not (
+            impl == "nodes" and _is_geometry_normal(src.links[0].from_socket)
+        ):
             tree.links.new(src.links[0].from_socket, dst)
     for key in OPTION_KEYS:
         value = get_option(old, key)
@@ -303,8 +332,11 @@ def osl_unavailable_reason(scene: bpy.types.Scene) -> str | None:
     """Why the OSL shader cannot render in this scene's settings, or None when it can."""
     engine = scene.render.engine
     if engine != 'CYCLES':
-        label = {'BLENDER_EEVEE_NEXT': "EEVEE", 'BLENDER_EEVEE': "EEVEE",
-                 'BLENDER_WORKBENCH': "Workbench"}.get(engine, engine)
+        label = {
+            'BLENDER_EEVEE_NEXT': "EEVEE",
+            'BLENDER_EEVEE': "EEVEE",
+            'BLENDER_WORKBENCH': "Workbench",
+        }.get(engine, engine)
         return f"{label} cannot run OSL shaders; they render only in Cycles"
     if not scene.cycles.shading_system:
         return "Open Shading Language is off (Render Properties > Cycles)"

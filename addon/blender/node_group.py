@@ -21,53 +21,73 @@ from ..core.correction_tables import CORRECTION_TABLES, correction_table_folder
 from ..core.errors import UserError
 from ..core.ibl_bake import LEVEL_COUNT
 from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, SCENE_VIEWS, VIEWS
-from ..core.node_description import (CLOSURE_OPS, CORRECTION_OUTPUTS, DESCRIPTION,
-                                     VECTOR_VALUE_OPS, LightPlan, SubgroupPlan,
-                                     load_description, parse)
+from ..core.node_description import (
+    CLOSURE_OPS,
+    CORRECTION_OUTPUTS,
+    DESCRIPTION,
+    VECTOR_VALUE_OPS,
+    LightPlan,
+    SubgroupPlan,
+    load_description,
+    parse,
+)
 
 TAG = "ctlab_node_group"
-LIGHT_GROUP = "ctlab_light_group"       # tags the per-light group
-CORRECTION_GROUP = "ctlab_correction_group"     # tags the correction group
-BAKE_FILE = "ctlab_bake_file"           # texture nodes: which baked file they read
-BAKE_DIM = "ctlab_bake_dim"             # value nodes: that file's width or height
-MODEL_TABLE = "ctlab_model_table"       # texture nodes: which correction table they read
+LIGHT_GROUP = "ctlab_light_group"  # tags the per-light group
+CORRECTION_GROUP = "ctlab_correction_group"  # tags the correction group
+BAKE_FILE = "ctlab_bake_file"  # texture nodes: which baked file they read
+BAKE_DIM = "ctlab_bake_dim"  # value nodes: that file's width or height
+MODEL_TABLE = "ctlab_model_table"  # texture nodes: which correction table they read
 # The group's output of the residual albedo (core.model OSL_RESIDUAL), built where the
 # interface (core.model GROUP_OUTPUTS) has it
 RESIDUAL_OUTPUT = "Residual Albedo"
 
 
-SOCKET_TYPES = {"FLOAT": "NodeSocketFloat", "INT": "NodeSocketInt", "RGBA": "NodeSocketColor",
-                "VECTOR": "NodeSocketVector", "SHADER": "NodeSocketShader"}
-POLE_MARGIN = 3e-3      # radians: the least distance of a lat-long lookup from a pole
+SOCKET_TYPES = {
+    "FLOAT": "NodeSocketFloat",
+    "INT": "NodeSocketInt",
+    "RGBA": "NodeSocketColor",
+    "VECTOR": "NodeSocketVector",
+    "SHADER": "NodeSocketShader",
+}
+POLE_MARGIN = 3e-3  # radians: the least distance of a lat-long lookup from a pole
 
 
 # --- Building ----------------------------------------------------------------------------
 
+
 class _Builder:
-    def __init__(self, tree: bpy.types.ShaderNodeTree, data: dict, exprs: dict,
-                 lights: LightPlan | None = None, light_group=None):
+    def __init__(
+        self,
+        tree: bpy.types.ShaderNodeTree,
+        data: dict,
+        exprs: dict,
+        lights: LightPlan | None = None,
+        light_group=None,
+    ):
         self.tree = tree
         self.nodes = tree.nodes
         self.data = data
-        self.exprs = exprs                  # node name -> (frame, parsed expression)
+        self.exprs = exprs  # node name -> (frame, parsed expression)
         self.frame_labels = {key: spec["label"] for key, spec in data["frames"].items()}
-        self.frame_labels["lights"] = ("The lights: the key Sun and each slot, each an "
-                                       "instance of the per-light group")
+        self.frame_labels["lights"] = (
+            "The lights: the key Sun and each slot, each an instance of the per-light group"
+        )
         self.lights, self.light_group = lights, light_group
-        self.light_nodes = {}               # suffix -> the per-light group's instance
-        self.built = {}                     # (node name, mode or None) -> output socket
+        self.light_nodes = {}  # suffix -> the per-light group's instance
+        self.built = {}  # (node name, mode or None) -> output socket
         self.frames = {}
         self.current_frame = None
         self.group_in = self.nodes.new("NodeGroupInput")
         self.geometry = None
         self.columns = {}
-        self.horizontal = {}                # direction socket -> environment()'s parts
-        self.table_directions = {}          # (u, v) sockets -> table()'s direction
+        self.horizontal = {}  # direction socket -> environment()'s parts
+        self.table_directions = {}  # (u, v) sockets -> table()'s direction
         # "colour": every term as a colour (the Value output); "emission": the closure terms
         # (CLOSURE_OPS) left out, for build_group to add as closures (the Emission output)
         self.mode = "colour"
-        self.closure_terms = {}             # name -> (op, built arguments), in emission mode
-        self.chain_group = None             # prefiltered() as instances of this group
+        self.closure_terms = {}  # name -> (op, built arguments), in emission mode
+        self.chain_group = None  # prefiltered() as instances of this group
         self.closure_names = []
         for name, (_, tree) in self.exprs.items():
             if tree[0] == "call" and tree[1] in CLOSURE_OPS:
@@ -81,8 +101,7 @@ class _Builder:
         if tree[0] == "ref" and tree[1] in self.exprs:
             key = (tree[1], tuple(names))
             if key not in self._depends:
-                self._depends[key] = tree[1] in names or self.depends(self.exprs[tree[1]][1],
-                                                                      names)
+                self._depends[key] = tree[1] in names or self.depends(self.exprs[tree[1]][1], names)
             return self._depends[key]
         return False
 
@@ -165,7 +184,7 @@ class _Builder:
         if kind == "ref":
             return self.socket(tree[1])
         _, op, args = tree
-        if op in ("env", "table"):          # the first argument names a baked file
+        if op in ("env", "table"):  # the first argument names a baked file
             return self.call(op, [args[0][1]] + [self.value(a) for a in args[1:]])
         return self.call(op, [self.value(a) for a in args])
 
@@ -201,10 +220,13 @@ class _Builder:
             kind = "math" if op == "pick" else "vec"
             not_c = self.call("math.SUBTRACT", [1.0, c])
             if kind == "math":
-                return self.call("math.ADD", [self.call("math.MULTIPLY", [a, not_c]),
-                                              self.call("math.MULTIPLY", [b, c])])
-            return self.call("vec.ADD", [self.call("vec.SCALE", [a, not_c]),
-                                         self.call("vec.SCALE", [b, c])])
+                return self.call(
+                    "math.ADD",
+                    [self.call("math.MULTIPLY", [a, not_c]), self.call("math.MULTIPLY", [b, c])],
+                )
+            return self.call(
+                "vec.ADD", [self.call("vec.SCALE", [a, not_c]), self.call("vec.SCALE", [b, c])]
+            )
         if op == "rotz":
             node = self.new("ShaderNodeVectorRotate", rotation_type='Z_AXIS')
             self.link(args[0], node.inputs["Vector"])
@@ -221,9 +243,21 @@ class _Builder:
             total = None
             for k in range(LEVEL_COUNT):
                 # hat weight max(0, 1 - |x - k|): the two neighbouring levels, blended linearly
-                w = self.call("math.MAXIMUM", [self.call("math.SUBTRACT", [
-                    1.0, self.call("math.ABSOLUTE", [self.call("math.SUBTRACT", [x, float(k)])])]),
-                    0.0])
+                w = self.call(
+                    "math.MAXIMUM",
+                    [
+                        self.call(
+                            "math.SUBTRACT",
+                            [
+                                1.0,
+                                self.call(
+                                    "math.ABSOLUTE", [self.call("math.SUBTRACT", [x, float(k)])]
+                                ),
+                            ],
+                        ),
+                        0.0,
+                    ],
+                )
                 term = self.call("vec.SCALE", [self.environment(f"specular_{k}", direction), w])
                 total = term if total is None else self.call("vec.ADD", [total, term])
             return self.call("vec.MULTIPLY", [total, factor])
@@ -241,8 +275,11 @@ class _Builder:
             node.width = 180
             self.light_nodes[suffix] = node
             for name in self.lights.fields:
-                source = self.lights.key_sun[name] if not suffix else \
-                    ("ref", f"in.Light {suffix[1:]} {name}")
+                source = (
+                    self.lights.key_sun[name]
+                    if not suffix
+                    else ("ref", f"in.Light {suffix[1:]} {name}")
+                )
                 self.link(self.value(source), node.inputs[name])
             for name in self.lights.globals:
                 self.link(self.socket(name), node.inputs[name])
@@ -273,26 +310,51 @@ class _Builder:
         row). For H > 524 the lookup reads a little below the last row's centre instead."""
         if d not in self.horizontal:
             dx, dy, dz = (self.call(c, [d]) for c in ("x", "y", "z"))
-            h = self.call("math.SQRT", [self.call("math.ADD", [
-                self.call("math.MULTIPLY", [dx, dx]), self.call("math.MULTIPLY", [dy, dy])])])
+            h = self.call(
+                "math.SQRT",
+                [
+                    self.call(
+                        "math.ADD",
+                        [
+                            self.call("math.MULTIPLY", [dx, dx]),
+                            self.call("math.MULTIPLY", [dy, dy]),
+                        ],
+                    )
+                ],
+            )
             at_pole = self.call("math.LESS_THAN", [h, 1e-20])
-            self.horizontal[d] = (self.call("math.ABSOLUTE", [dz]),
-                                  self.call("math.MAXIMUM", [h, 1e-20]),
-                                  at_pole, self.call("math.SUBTRACT", [1.0, at_pole]))
+            self.horizontal[d] = (
+                self.call("math.ABSOLUTE", [dz]),
+                self.call("math.MAXIMUM", [h, 1e-20]),
+                at_pole,
+                self.call("math.SUBTRACT", [1.0, at_pole]),
+            )
         abs_z, h, at_pole, off_pole = self.horizontal[d]
-        delta = self.call("math.MAXIMUM", [self.call("math.DIVIDE", [
-            1.5707963267948966, self.dimension(key, "height")]), POLE_MARGIN])
+        delta = self.call(
+            "math.MAXIMUM",
+            [
+                self.call("math.DIVIDE", [1.5707963267948966, self.dimension(key, "height")]),
+                POLE_MARGIN,
+            ],
+        )
         least = self.call("math.MULTIPLY", [abs_z, self.call("math.TANGENT", [delta])])
-        k = self.call("math.MULTIPLY", [self.call("math.MAXIMUM", [
-            1.0, self.call("math.DIVIDE", [least, h])]), off_pole])
-        clamped = self.call("vec.ADD", [
-            self.call("vec.MULTIPLY", [d, self.call("vec3", [k, k, 1.0])]),
-            self.call("vec3", [self.call("math.MULTIPLY", [least, at_pole]), 0.0, 0.0])])
+        k = self.call(
+            "math.MULTIPLY",
+            [self.call("math.MAXIMUM", [1.0, self.call("math.DIVIDE", [least, h])]), off_pole],
+        )
+        clamped = self.call(
+            "vec.ADD",
+            [
+                self.call("vec.MULTIPLY", [d, self.call("vec3", [k, k, 1.0])]),
+                self.call("vec3", [self.call("math.MULTIPLY", [least, at_pole]), 0.0, 0.0]),
+            ],
+        )
         return self.lookup(key, clamped)
 
     def lookup(self, key, d):
-        node = self.new("ShaderNodeTexEnvironment", interpolation='Linear',
-                        projection='EQUIRECTANGULAR')
+        node = self.new(
+            "ShaderNodeTexEnvironment", interpolation='Linear', projection='EQUIRECTANGULAR'
+        )
         node.label = key
         node[MODEL_TABLE if key in CORRECTION_TABLES else BAKE_FILE] = key
         self.link(d, node.inputs["Vector"])
@@ -306,16 +368,22 @@ class _Builder:
         node's Linear lookups use mip-maps in EEVEE). The round trip through the angles costs
         up to 4e-5 of a texel in float32; (u, v) stays half a texel inside the edges, so the
         wrapped neighbour's weight is at most about 4e-6."""
-        if (u, v) not in self.table_directions:     # one direction for the tables at (u, v)
-            phi = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [0.5, u]),
-                                              6.283185307179586])
-            theta = self.call("math.MULTIPLY", [self.call("math.SUBTRACT", [v, 0.5]),
-                                                3.141592653589793])
+        if (u, v) not in self.table_directions:  # one direction for the tables at (u, v)
+            phi = self.call(
+                "math.MULTIPLY", [self.call("math.SUBTRACT", [0.5, u]), 6.283185307179586]
+            )
+            theta = self.call(
+                "math.MULTIPLY", [self.call("math.SUBTRACT", [v, 0.5]), 3.141592653589793]
+            )
             cos_theta = self.call("math.COSINE", [theta])
-            self.table_directions[u, v] = self.call("vec3", [
-                self.call("math.MULTIPLY", [cos_theta, self.call("math.COSINE", [phi])]),
-                self.call("math.MULTIPLY", [cos_theta, self.call("math.SINE", [phi])]),
-                self.call("math.SINE", [theta])])
+            self.table_directions[u, v] = self.call(
+                "vec3",
+                [
+                    self.call("math.MULTIPLY", [cos_theta, self.call("math.COSINE", [phi])]),
+                    self.call("math.MULTIPLY", [cos_theta, self.call("math.SINE", [phi])]),
+                    self.call("math.SINE", [theta]),
+                ],
+            )
         return self.lookup(key, self.table_directions[u, v])
 
 
@@ -326,13 +394,17 @@ def _interface(group):
         if i.key.startswith("light") and panel is None:
             # the light slots, in a panel the artist opens when needed (drivers fill them)
             panel = group.interface.new_panel("Lights", default_closed=True)
-        sock = group.interface.new_socket(i.group, in_out='INPUT',
-                                          socket_type=SOCKET_TYPES[i.kind], parent=panel)
+        sock = group.interface.new_socket(
+            i.group, in_out='INPUT', socket_type=SOCKET_TYPES[i.kind], parent=panel
+        )
         sock.description = i.tooltip
         if i.kind in ("FLOAT", "INT"):
             cast = int if i.kind == "INT" else float
-            sock.default_value, sock.min_value, sock.max_value = \
-                cast(i.default), cast(i.min), cast(i.max)
+            sock.default_value, sock.min_value, sock.max_value = (
+                cast(i.default),
+                cast(i.min),
+                cast(i.max),
+            )
         else:
             sock.default_value = i.default
         if i.key == "normal":
@@ -369,14 +441,17 @@ def build_light_group(data: dict, plan: LightPlan, name: str) -> bpy.types.Shade
     return group
 
 
-def build_correction_group(data: dict, plan: SubgroupPlan, name: str,
-                           chain_group) -> bpy.types.ShaderNodeTree:
+def build_correction_group(
+    data: dict, plan: SubgroupPlan, name: str, chain_group
+) -> bpy.types.ShaderNodeTree:
     """The correction group: the frames marked correction_group once, over the plan's
     inputs; its outputs the world's correction (a shader, its closure terms as
     ``_closures`` builds them) and the residual albedo (a colour)."""
     group = _tree(name, CORRECTION_GROUP)
-    group.description = ("The scene transport's correction for the world and its residual "
-                         "albedo (Cook-Torrance Lab; node_groups/cook_torrance.toml)")
+    group.description = (
+        "The scene transport's correction for the world and its residual "
+        "albedo (Cook-Torrance Lab; node_groups/cook_torrance.toml)"
+    )
     for label, kind, _ in plan.inputs:
         group.interface.new_socket(label, in_out='INPUT', socket_type=SOCKET_TYPES[kind])
     for label, kind in CORRECTION_OUTPUTS.values():
@@ -387,8 +462,7 @@ def build_correction_group(data: dict, plan: SubgroupPlan, name: str,
     b.current_frame = frame = "correction"
     b.mode = "emission"
     rest = b.value(plan.roots["correction_world"])
-    world = _closures(b, {"correction_world": plan.roots["correction_world"]}, None, rest,
-                      frame)
+    world = _closures(b, {"correction_world": plan.roots["correction_world"]}, None, rest, frame)
     b.mode = "colour"
     residual = b.value(plan.roots["residual"])
     out = group.nodes.new("NodeGroupOutput")
@@ -406,8 +480,9 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     name = name or data["group"]["name"]
     plan = LightPlan(data)
     light_group = build_light_group(data, plan, f"{name} Light")
-    correction_group = build_correction_group(data, plan.correction, f"{name} Correction",
-                                              build_chain_group(data, f"{name} Pre-filtered"))
+    correction_group = build_correction_group(
+        data, plan.correction, f"{name} Correction", build_chain_group(data, f"{name} Pre-filtered")
+    )
     group = _tree(name, TAG)
     group.description = data["group"]["description"]
     _interface(group)
@@ -417,8 +492,9 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
     b.frames["views"] = b.frame("views")
     b.frames["views"].label = "View (term isolation) and the output"
     views = plan.views
-    view_on = [b.call("math.COMPARE", [b.socket("in.View"), float(k), 0.5])
-               for k in range(len(views))]
+    view_on = [
+        b.call("math.COMPARE", [b.socket("in.View"), float(k), 0.5]) for k in range(len(views))
+    ]
 
     def select(mode):
         """The chosen view: the sum over k of (View == k) x view_k."""
@@ -432,8 +508,7 @@ def build_group(name: str | None = None) -> bpy.types.ShaderNodeTree:
 
     colour = select("colour")
     emission = _closures(b, views, view_on, select("emission"))
-    emission, residual = _scene_transport(b, data["scene"], view_on, emission,
-                                          correction_group)
+    emission, residual = _scene_transport(b, data["scene"], view_on, emission, correction_group)
     out = group.nodes.new("NodeGroupOutput")
     out.location = (2800, 0)
     group.links.new(emission, out.inputs["Emission"])
@@ -485,17 +560,20 @@ def _closures(b: _Builder, views: dict, view_on: list, rest, frame: str = "views
         for k, (view, tree) in enumerate(views.items()):
             count = b.additive_count(tree, name)
             if count not in (0, 1):
-                raise UserError(f"node description: the view {view!r} must hold {name!r} at "
-                                "most once, as a term of a sum (vec.ADD), since the group's "
-                                "Emission output adds it as a closure")
+                raise UserError(
+                    f"node description: the view {view!r} must hold {name!r} at "
+                    "most once, as a term of a sum (vec.ADD), since the group's "
+                    "Emission output adds it as a closure"
+                )
             if count and view_on is not None:
                 on = view_on[k]
                 weight = on if weight is None else b.call("math.ADD", [weight, on])
         if op == "gated":
             c, colour = args
-            closure = mix(b.call("math.GREATER_THAN", [c, 0.0]), None,
-                          emit(weighted(colour, weight)), name)
-        elif b.chain_group is not None:     # the chain below, as an instance of that group
+            closure = mix(
+                b.call("math.GREATER_THAN", [c, 0.0]), None, emit(weighted(colour, weight)), name
+            )
+        elif b.chain_group is not None:  # the chain below, as an instance of that group
             x, direction, factor = args
             node = b.new("ShaderNodeGroup")
             node.node_tree = b.chain_group
@@ -515,12 +593,18 @@ def _closures(b: _Builder, views: dict, view_on: list, rest, frame: str = "views
 
 def _chain(b: _Builder, x, direction, factor, name: str, emit, mix):
     """prefiltered(x, direction, factor) as a chain of Mix Shader nodes (``_closures``)."""
+
     def level(k):
         return emit(b.call("vec.MULTIPLY", [b.environment(f"specular_{k}", direction), factor]))
+
     closure = level(LEVEL_COUNT - 1)
     for k in range(LEVEL_COUNT - 2, -1, -1):
-        closure = mix(b.call("math.SUBTRACT!", [x, float(k)]), level(k), closure,
-                      f"{name}: levels {k}-{LEVEL_COUNT - 1}")
+        closure = mix(
+            b.call("math.SUBTRACT!", [x, float(k)]),
+            level(k),
+            closure,
+            f"{name}: levels {k}-{LEVEL_COUNT - 1}",
+        )
     return closure
 
 
@@ -534,16 +618,20 @@ def build_chain_group(data: dict, name: str) -> bpy.types.ShaderNodeTree:
     a group of its own (tagged as the correction group, so that set_bake finds its
     lookups)."""
     group = _tree(name, CORRECTION_GROUP)
-    group.description = ("The pre-filtered levels toward a direction at a fractional level, "
-                         "times a colour, as Emission closures (Cook-Torrance Lab)")
+    group.description = (
+        "The pre-filtered levels toward a direction at a fractional level, "
+        "times a colour, as Emission closures (Cook-Torrance Lab)"
+    )
     for label, kind in CHAIN_INPUTS:
         group.interface.new_socket(label, in_out='INPUT', socket_type=SOCKET_TYPES[kind])
     group.interface.new_socket("Emission", in_out='OUTPUT', socket_type=SOCKET_TYPES["SHADER"])
     b = _Builder(group, data, {})
     b.group_in.location = (-600, 0)
     b.current_frame = "chain"
-    b.frame_labels["chain"] = ("sum_k max(0, 1 - |Level - k|) L_k(Direction) Colour: a chain "
-                               "of Mix Shader nodes over the levels (two are read)")
+    b.frame_labels["chain"] = (
+        "sum_k max(0, 1 - |Level - k|) L_k(Direction) Colour: a chain "
+        "of Mix Shader nodes over the levels (two are read)"
+    )
 
     def emit(colour):
         node = b.new("ShaderNodeEmission")
@@ -558,6 +646,7 @@ def build_chain_group(data: dict, name: str) -> bpy.types.ShaderNodeTree:
         b.link(first, node.inputs[1])
         b.link(second, node.inputs[2])
         return node.outputs["Shader"]
+
     sockets = [b.socket("in." + label) for label, _ in CHAIN_INPUTS]
     out = group.nodes.new("NodeGroupOutput")
     out.location = (2800, 0)
@@ -637,8 +726,9 @@ def _scene_transport(b: _Builder, spec: dict, view_on: list, lab, correction_gro
     scene_on = b.call("math.MULTIPLY", [on, weight])
     scene_on.node.label = "scene transport on"
 
-    colour, roughness, normal = (value(spec["specular"][k])
-                                 for k in ("color", "roughness", "normal"))
+    colour, roughness, normal = (
+        value(spec["specular"][k]) for k in ("color", "roughness", "normal")
+    )
     if not roughness.node.label:
         roughness.node.label = "roughness = sqrt(alpha)"
     single, multiple = specular('GGX'), specular('MULTI_GGX')
@@ -664,16 +754,19 @@ def _scene_transport(b: _Builder, spec: dict, view_on: list, lab, correction_gro
         b.current_frame = frame
     b.mode = "emission"
     rest = b.value(plan.scene["correction_lights"])
-    lights = _closures(b, {"correction_lights": plan.scene["correction_lights"]}, None, rest,
-                       frame)
+    lights = _closures(b, {"correction_lights": plan.scene["correction_lights"]}, None, rest, frame)
     b.mode = "colour"
-    correction = add(lights, group.outputs[CORRECTION_OUTPUTS["correction_world"][0]],
-                     "correction: the lights + the world")
-    scene = add(closures, mix(correct, None, correction, "correction (0: the closures are "
-                                                         "the model)"),
-                "scene closures + correction")
-    residual = b.call("vec.SCALE", [group.outputs[CORRECTION_OUTPUTS["residual"][0]],
-                                    scene_on])
+    correction = add(
+        lights,
+        group.outputs[CORRECTION_OUTPUTS["correction_world"][0]],
+        "correction: the lights + the world",
+    )
+    scene = add(
+        closures,
+        mix(correct, None, correction, "correction (0: the closures are the model)"),
+        "scene closures + correction",
+    )
+    residual = b.call("vec.SCALE", [group.outputs[CORRECTION_OUTPUTS["residual"][0]], scene_on])
     residual.node.label = "residual albedo (scene transport)"
     return mix(scene_on, lab, scene, "lab emission or scene closures"), residual
 
@@ -710,9 +803,13 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
     """The node group, reused when it was built from the current description (rebuilding
     would reset the inputs and links of every material using it), else built."""
     import hashlib
-    digest = hashlib.sha256(DESCRIPTION.read_bytes() + repr(GROUP_INPUTS).encode()
-                            + repr(GROUP_OUTPUTS).encode()
-                            + Path(__file__).read_bytes()).hexdigest()[:16]
+
+    digest = hashlib.sha256(
+        DESCRIPTION.read_bytes()
+        + repr(GROUP_INPUTS).encode()
+        + repr(GROUP_OUTPUTS).encode()
+        + Path(__file__).read_bytes()
+    ).hexdigest()[:16]
     group = bpy.data.node_groups.get(load_description()["group"]["name"])
     if group is not None and group.get(TAG) and group.get(SOURCE_HASH) == digest:
         return group
@@ -725,14 +822,18 @@ def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
     """Point the group's texture nodes at a bake folder's files (core/ibl_bake.py), and the
     scene transport's tables at theirs (``correction_table_folder``, once per cache)."""
     folder = Path(folder)
-    trees, pending = [], [group]        # and the groups it holds: per-light, correction
+    trees, pending = [], [group]  # and the groups it holds: per-light, correction
     while pending:
         tree = pending.pop()
         if tree not in trees:
             trees.append(tree)
-            pending += [n.node_tree for n in tree.nodes if n.bl_idname == "ShaderNodeGroup"
-                        and n.node_tree is not None and (n.node_tree.get(LIGHT_GROUP)
-                                                         or n.node_tree.get(CORRECTION_GROUP))]
+            pending += [
+                n.node_tree
+                for n in tree.nodes
+                if n.bl_idname == "ShaderNodeGroup"
+                and n.node_tree is not None
+                and (n.node_tree.get(LIGHT_GROUP) or n.node_tree.get(CORRECTION_GROUP))
+            ]
     nodes = [node for tree in trees for node in tree.nodes]
     tables = correction_table_folder() if any(MODEL_TABLE in node for node in nodes) else None
     for node in nodes:
@@ -753,5 +854,5 @@ def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
 def _float_image(path: Path) -> bpy.types.Image:
     image = bpy.data.images.load(str(path), check_existing=True)
     image.colorspace_settings.name = "Non-Color"
-    image.use_half_precision = False        # EEVEE: keep 32-bit floats on the GPU
+    image.use_half_precision = False  # EEVEE: keep 32-bit floats on the GPU
     return image

@@ -23,6 +23,7 @@ def ensure_oslquery() -> None:
     """Cycles' script-node update imports oslquery; without Blender's bundled modules exposed,
     the node silently gets no sockets and the material renders black."""
     from .compat import bundled_module
+
     bundled_module("oslquery")
 
 
@@ -37,8 +38,12 @@ def shader_text(path: Path = SHADER_FILE, name: str = TEXT_NAME) -> bpy.types.Te
     return text
 
 
-def compile_script_node(node: bpy.types.ShaderNodeScript, path: Path = SHADER_FILE,
-                        name: str = TEXT_NAME, output: str = "BSDF") -> None:
+def compile_script_node(
+    node: bpy.types.ShaderNodeScript,
+    path: Path = SHADER_FILE,
+    name: str = TEXT_NAME,
+    output: str = "BSDF",
+) -> None:
     """Compile a shader (the model's, by default) as the node's internal script and create
     its sockets."""
     ensure_oslquery()
@@ -63,8 +68,11 @@ def compile_script_node(node: bpy.types.ShaderNodeScript, path: Path = SHADER_FI
         finally:
             tempfile.tempdir = saved
     if errors or output not in node.outputs:
-        raise UserError(f"the OSL shader {Path(path).name} failed to compile: "
-                        + ("; ".join(errors) or "no output socket") + " (see the console)")
+        raise UserError(
+            f"the OSL shader {Path(path).name} failed to compile: "
+            + ("; ".join(errors) or "no output socket")
+            + " (see the console)"
+        )
     if any(sock.identifier == "tex_bottom_up" for sock in node.inputs):
         set_texture_convention(node)
 
@@ -73,6 +81,7 @@ def set_texture_convention(node: bpy.types.ShaderNodeScript) -> None:
     """Tell the shader how this Blender's OSL texture() counts rows (compat.py); a material
     saved by another Blender version is corrected by light_sync when it syncs."""
     from .compat import osl_texture_rows_bottom_up
+
     socket(node, "tex_bottom_up").default_value = int(osl_texture_rows_bottom_up())
 
 
@@ -82,6 +91,7 @@ def set_environment(node: bpy.types.ShaderNodeScript, hdri, bake=None) -> None:
     edges (the bake's level 0 is the HDRI itself, so either file tells it)."""
     from ..core.hdri import image_width
     from ..core.ibl_bake import level_file, tables_folder
+
     socket(node, "hdri").default_value = str(hdri) if hdri else ""
     socket(node, "tables").default_value = str(tables_folder())
     if bake is not None:
@@ -93,7 +103,7 @@ def set_environment(node: bpy.types.ShaderNodeScript, hdri, bake=None) -> None:
 
 def socket(node: bpy.types.Node, identifier: str, output: bool = False) -> bpy.types.NodeSocket:
     """A script node's socket by its OSL parameter name (socket names carry the OSL labels)."""
-    for sock in (node.outputs if output else node.inputs):
+    for sock in node.outputs if output else node.inputs:
         if sock.identifier == identifier:
             return sock
     raise KeyError(f"the shader has no parameter {identifier!r}")

@@ -12,10 +12,10 @@ from ..core import cache
 # The package that names the add-on's preferences: this module is <package>.addon.blender.paths
 # when Blender loads the extension (bl_ext.<repo>.cook_torrance_lab) or the background job its
 # private copy; a checkout imported from its root has only addon.blender, and uses "addon".
-PACKAGE = __package__.rsplit(".", 2)[0] if __package__.count(".") >= 2 else \
-    __package__.split(".")[0]
-BUNDLED_HDRIS = ("city", "courtyard", "forest", "interior", "night", "studio", "sunrise",
-                 "sunset")
+PACKAGE = (
+    __package__.rsplit(".", 2)[0] if __package__.count(".") >= 2 else __package__.split(".")[0]
+)
+BUNDLED_HDRIS = ("city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset")
 
 
 def bundled_hdri(name: str = "forest") -> Path:

@@ -24,8 +24,9 @@ def build(scene: bpy.types.Scene, width: int, height: int) -> bpy.types.Object:
     """The plane (W x H units, one per pixel, UV 0..1 over it) and the camera framing it
     exactly, in ``scene``; returns the plane, whose material the caller gives."""
     mesh = bpy.data.meshes.new("Cook-Torrance Lab Pixel Grid")
-    mesh.from_pydata([(0, 0, 0), (width, 0, 0), (width, height, 0), (0, height, 0)], [],
-                     [(0, 1, 2, 3)])
+    mesh.from_pydata(
+        [(0, 0, 0), (width, 0, 0), (width, height, 0), (0, height, 0)], [], [(0, 1, 2, 3)]
+    )
     uv = mesh.uv_layers.new(name="UVMap")
     for loop, coords in zip(mesh.loops, ((0, 0), (1, 0), (1, 1), (0, 1))):
         uv.data[loop.index].uv = coords
@@ -35,12 +36,12 @@ def build(scene: bpy.types.Scene, width: int, height: int) -> bpy.types.Object:
 
     cam_data = bpy.data.cameras.new("Cook-Torrance Lab Pixel Grid Camera")
     cam_data.type = 'ORTHO'
-    cam_data.sensor_fit = 'AUTO'                 # ortho_scale spans the longer side
+    cam_data.sensor_fit = 'AUTO'  # ortho_scale spans the longer side
     cam_data.ortho_scale = max(width, height)
     cam_data.clip_start, cam_data.clip_end = 0.1, 2 * CAMERA_HEIGHT
     cam = bpy.data.objects.new("Cook-Torrance Lab Pixel Grid Camera", cam_data)
     cam[TAG] = True
-    cam.location = (width / 2, height / 2, CAMERA_HEIGHT)   # no rotation: looks along -Z
+    cam.location = (width / 2, height / 2, CAMERA_HEIGHT)  # no rotation: looks along -Z
     scene.collection.objects.link(cam)
     scene.camera = cam
     scene.world = None
@@ -56,7 +57,7 @@ def data_image(name: str, data: np.ndarray) -> bpy.types.Image:
     data = np.asarray(data, dtype=np.float32)
     h, w = data.shape[:2]
     rgba = np.ones((h, w, 4), dtype=np.float32)
-    rgba[..., :data.shape[2]] = data
+    rgba[..., : data.shape[2]] = data
     old = bpy.data.images.get(name)
     if old is not None:
         bpy.data.images.remove(old)
@@ -64,7 +65,7 @@ def data_image(name: str, data: np.ndarray) -> bpy.types.Image:
     image.colorspace_settings.name = "Non-Color"
     image.alpha_mode = 'NONE'
     image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())  # Blender: bottom row first
-    image.pack()                                # a generated image: kept with the file
+    image.pack()  # a generated image: kept with the file
     return image
 
 
@@ -84,8 +85,9 @@ def render(scene: bpy.types.Scene, log_path=None) -> np.ndarray:
     after."""
     from ..core.compare import read_image
     from ..core.files import temporary_folder
+
     result = renderer.render_result(log_path)
-    with temporary_folder("ctlab-pixels-") as folder:    # removed on a signal too
+    with temporary_folder("ctlab-pixels-") as folder:  # removed on a signal too
         path = folder / "pixels.exr"
         with renderer.quiet(log_path):
             renderer.save_exr(scene, result, path)

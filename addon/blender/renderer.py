@@ -31,7 +31,6 @@ OUTPUT_FILES = ("render.exr", "render.png", "scene.json")
 ENGINES = ("cycles", "eevee")
 
 
-
 def configure_eevee(scene: bpy.types.Scene, view: str, samples: int, pixel_centres: bool) -> None:
     """EEVEE for the node group (OSL cannot run there): term views (and every view with
     ``pixel_centres``) take one sample with a zero-width filter."""
@@ -41,12 +40,19 @@ def configure_eevee(scene: bpy.types.Scene, view: str, samples: int, pixel_centr
     scene.render.filter_size = 0.0 if exact else 1.5
 
 
-PATH_BOUNCES = 12            # Blender's default light paths, for the path-traced renders
+PATH_BOUNCES = 12  # Blender's default light paths, for the path-traced renders
 
 
-def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed: int = 0,
-              pixel_centres: bool = False, engine: str = "cycles",
-              path_traced: bool = False) -> None:
+def configure(
+    scene: bpy.types.Scene,
+    shader: str,
+    view: str,
+    samples: int,
+    seed: int = 0,
+    pixel_centres: bool = False,
+    engine: str = "cycles",
+    path_traced: bool = False,
+) -> None:
     """Cycles on the CPU; OSL for the Cook-Torrance shader; no denoiser, no adaptive sampling
     and no clamping, so renders converge to the integral they estimate. Term views (and every
     view with ``pixel_centres``) take one sample at each pixel centre. ``engine`` "eevee"
@@ -54,15 +60,17 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
     (Cycles path traces its closures, with the world sampled as a light)."""
     if engine == "eevee":
         if shader != "nodes":
-            raise UserError(f"EEVEE cannot render the {shader!r} shader here; use --shader nodes "
-                            "(the OSL shader needs Cycles on the CPU)")
+            raise UserError(
+                f"EEVEE cannot render the {shader!r} shader here; use --shader nodes "
+                "(the OSL shader needs Cycles on the CPU)"
+            )
         configure_eevee(scene, view, samples, pixel_centres)
         _view_transform(scene, view)
         return
     scene.render.engine = 'CYCLES'
     cy = scene.cycles
     cy.device = 'CPU'
-    cy.shading_system = (shader == "osl")
+    cy.shading_system = shader == "osl"
     cy.use_denoising = False
     cy.use_adaptive_sampling = False
     set_exact_path_tracing(scene)
@@ -80,8 +88,9 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
         # the lab shader integrates the lighting itself; the scene transport is path traced
         cy.max_bounces = PATH_BOUNCES if path_traced else 0
     if scene.world is not None:
-        scene.world.cycles.sampling_method = 'NONE' if not path_traced and \
-            _only_the_model(scene) else 'AUTOMATIC'
+        scene.world.cycles.sampling_method = (
+            'NONE' if not path_traced and _only_the_model(scene) else 'AUTOMATIC'
+        )
     scene.render.film_transparent = False
     scene.render.use_persistent_data = False
     _view_transform(scene, view)
@@ -90,8 +99,12 @@ def configure(scene: bpy.types.Scene, shader: str, view: str, samples: int, seed
 # The settings under which Cycles' path tracing converges to the integral of the closures:
 # no clamping, no glossy filter (it blurs a glossy lobe seen after a diffuse or rough bounce)
 # and reflective caustics traced (docs/model.md "Light transport").
-EXACT_PATH_TRACING = {"sample_clamp_direct": 0.0, "sample_clamp_indirect": 0.0,
-                      "blur_glossy": 0.0, "caustics_reflective": True}
+EXACT_PATH_TRACING = {
+    "sample_clamp_direct": 0.0,
+    "sample_clamp_indirect": 0.0,
+    "blur_glossy": 0.0,
+    "caustics_reflective": True,
+}
 
 
 def set_exact_path_tracing(scene: bpy.types.Scene) -> None:
@@ -102,8 +115,12 @@ def set_exact_path_tracing(scene: bpy.types.Scene) -> None:
 def inexact_path_tracing(scene: bpy.types.Scene) -> list:
     """The scene's Cycles settings that keep a path-traced render from converging to the
     model (for the panel's warning): ``["Clamp Indirect 10", ...]``, empty when none."""
-    names = {"sample_clamp_direct": "Clamp Direct", "sample_clamp_indirect": "Clamp Indirect",
-             "blur_glossy": "Filter Glossy", "caustics_reflective": "Reflective Caustics off"}
+    names = {
+        "sample_clamp_direct": "Clamp Direct",
+        "sample_clamp_indirect": "Clamp Indirect",
+        "blur_glossy": "Filter Glossy",
+        "caustics_reflective": "Reflective Caustics off",
+    }
     out = []
     for key, value in EXACT_PATH_TRACING.items():
         have = getattr(scene.cycles, key)
@@ -122,8 +139,9 @@ def _only_the_model(scene: bpy.types.Scene) -> bool:
     can be left out. Any other material (Principled beside the model, in a user's scene)
     keeps it."""
     materials = {slot.material for obj in scene.objects for slot in obj.material_slots}
-    return bool(materials) and all(m is not None and model_node.find(m) is not None
-                                   for m in materials)
+    return bool(materials) and all(
+        m is not None and model_node.find(m) is not None for m in materials
+    )
 
 
 def _view_transform(scene: bpy.types.Scene, view: str) -> None:
@@ -190,6 +208,7 @@ def cycles_times(exr_path: Path) -> dict:
     """Cycles' own synchronisation (scene and shader compile) and render times, from the
     metadata it writes into the image."""
     from ..core.hdri import oiio
+
     OIIO = oiio()
     inp = OIIO.ImageInput.open(str(exr_path))
     if inp is None:
@@ -197,8 +216,10 @@ def cycles_times(exr_path: Path) -> dict:
     attrs = {a.name: a.value for a in inp.spec().extra_attribs}
     inp.close()
     out = {}
-    for key, name in (("sync_seconds", "synchronization_time"),
-                      ("cycles_render_seconds", "render_time")):
+    for key, name in (
+        ("sync_seconds", "synchronization_time"),
+        ("cycles_render_seconds", "render_time"),
+    ):
         value = next((v for k, v in attrs.items() if k.endswith("." + name)), None)
         if isinstance(value, str):
             try:
@@ -228,11 +249,18 @@ def render(scene: bpy.types.Scene, out_dir: Path, description: dict, log_path=No
         with quiet(log_path, stderr=True):
             _save(scene, result, exr, "exr")
             _save(scene, result, png, "png")
-        description = dict(description, render_seconds=round(elapsed, 3), **cycles_times(exr),
-                           samples=(scene.cycles.samples if scene.render.engine == 'CYCLES'
-                                    else scene.eevee.taa_render_samples),
-                           engine=scene.render.engine,
-                           view_transform=scene.view_settings.view_transform,
-                           blender=bpy.app.version_string)
+        description = dict(
+            description,
+            render_seconds=round(elapsed, 3),
+            **cycles_times(exr),
+            samples=(
+                scene.cycles.samples
+                if scene.render.engine == 'CYCLES'
+                else scene.eevee.taa_render_samples
+            ),
+            engine=scene.render.engine,
+            view_transform=scene.view_settings.view_transform,
+            blender=bpy.app.version_string,
+        )
         js.write_text(json_text(description))
     return description

@@ -21,8 +21,14 @@ from .paths import resolve_hdri
 from ..core import env_importance, ibl_bake
 from ..core.hdri import load_hdri
 from ..core.model import Lighting, files_needed
-from ..core.settings import (CAMERA_DISTANCE, TO_CAMERA, MatrixSettings, cell_center, describe,
-                             ortho_scale)
+from ..core.settings import (
+    CAMERA_DISTANCE,
+    TO_CAMERA,
+    MatrixSettings,
+    cell_center,
+    describe,
+    ortho_scale,
+)
 
 TAG = "ctlab_matrix"
 COLLECTION = "Cook-Torrance Matrix"
@@ -88,11 +94,11 @@ def environment_files(s: MatrixSettings, progress=None) -> tuple:
     in the cache: (the importance tables or {}, the bake folder or ""). A bad HDRI is a
     UserError; ``progress(fraction, message)`` follows a bake."""
     hdri = resolve_hdri(s.hdri)
-    load_hdri(hdri)                               # a clear error for a bad HDRI, before any change
+    load_hdri(hdri)  # a clear error for a bad HDRI, before any change
     tables, bake = {}, ""
     need = files_needed(s.shader, s.model.ibl, s.model.light_transport)
     if "tables" in need:
-        tables = env_importance.tables_for(hdri)      # the reference IBL, the scene correction
+        tables = env_importance.tables_for(hdri)  # the reference IBL, the scene correction
     if "bake" in need:
         bake = ibl_bake.bake(hdri, progress)
     return tables, bake
@@ -104,7 +110,7 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
     description (core.settings.describe). Changes nothing in the scene before it has checked
     the settings' HDRI."""
     hdri = resolve_hdri(s.hdri)
-    load_hdri(hdri)                               # a clear error for a bad HDRI, before any change
+    load_hdri(hdri)  # a clear error for a bad HDRI, before any change
     tables, bake = files
 
     remove_matrix(scene)
@@ -121,15 +127,18 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
     sun, light_objects = None, []
     if s.lights:
         for i, light in enumerate(s.lights):
-            obj = _tagged(scene_lights.new_light_object(
-                light, light.name or f"Cook-Torrance Lab Light {i + 1}"))
+            obj = _tagged(
+                scene_lights.new_light_object(
+                    light, light.name or f"Cook-Torrance Lab Light {i + 1}"
+                )
+            )
             coll.objects.link(obj)
             light_objects.append(obj)
     else:
         sun_data = bpy.data.lights.new("Cook-Torrance Lab Sun", 'SUN')
         sun_data.energy = s.sun_strength
         sun_data.color = s.sun_color
-        sun_data.angle = 0.0                      # a delta light, as the model's key light
+        sun_data.angle = 0.0  # a delta light, as the model's key light
         sun = _tagged(bpy.data.objects.new("Cook-Torrance Lab Sun", sun_data))
         sun.rotation_mode = 'QUATERNION'
         sun.rotation_quaternion = Vector(s.to_light()).to_track_quat('Z', 'Y')  # +Z toward it
@@ -141,22 +150,31 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
     cam_data.clip_start, cam_data.clip_end = 0.1, 2 * CAMERA_DISTANCE
     cam = _tagged(bpy.data.objects.new("Cook-Torrance Lab Camera", cam_data))
     cam.location = CAMERA_DISTANCE * Vector(TO_CAMERA)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)   # looks along +Y
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looks along +Y
     coll.objects.link(cam)
     scene.camera = cam
     scene.render.resolution_x, scene.render.resolution_y = s.width, s.height
     scene.render.resolution_percentage = 100
     scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
 
-    lighting = Lighting(s.to_light(), s.irradiance() if sun else (0.0, 0.0, 0.0), str(hdri),
-                        s.hdri_strength, s.hdri_rotation, tables, str(bake))
+    lighting = Lighting(
+        s.to_light(),
+        s.irradiance() if sun else (0.0, 0.0, 0.0),
+        str(hdri),
+        s.hdri_strength,
+        s.hdri_rotation,
+        tables,
+        str(bake),
+    )
     if s.shader == "principled":
-        mat = materials.principled_material("Principled Matrix", per_object=True,
-                                            distribution=s.principled_distribution)
+        mat = materials.principled_material(
+            "Principled Matrix", per_object=True, distribution=s.principled_distribution
+        )
     else:
         # shadow rays stop at the other spheres only where Principled's would
-        mat = materials.model_material("Cook-Torrance Matrix", s.shader, s.model_options(),
-                                       lighting, per_object=True)
+        mat = materials.model_material(
+            "Cook-Torrance Matrix", s.shader, s.model_options(), lighting, per_object=True
+        )
         # the key light, the lights and the world inputs follow the scene's objects
         node = model_node.find(mat)
         model_node.add_drivers(mat.node_tree, node, sun, scene.world)
@@ -185,6 +203,7 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
 def _sphere_mesh(mesh: bpy.types.Mesh, radius: float, segments=96, rings=48) -> None:
     """A smooth-shaded UV sphere fine enough that facets never show at matrix resolutions."""
     import bmesh
+
     bm = bmesh.new()
     bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
     bm.to_mesh(mesh)

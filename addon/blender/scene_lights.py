@@ -18,8 +18,10 @@ from ..core import lights as core_lights
 from ..core.model import BY_KEY, LIGHT_SLOTS, light_key
 
 # Blender light settings the model does not follow (docs/model.md "Lights", limits)
-UNSUPPORTED = (("normalize", False, "Normalize off"),
-               ("use_soft_falloff", False, "Soft Falloff off"))
+UNSUPPORTED = (
+    ("normalize", False, "Normalize off"),
+    ("use_soft_falloff", False, "Soft Falloff off"),
+)
 
 
 def as_light(obj: bpy.types.Object) -> core_lights.Light:
@@ -29,11 +31,18 @@ def as_light(obj: bpy.types.Object) -> core_lights.Light:
     extra = {}
     for key in core_lights.PER_TYPE[data.type]:
         extra[key] = getattr(data, key)
-    return core_lights.Light(type=data.type, energy=data.energy, name=obj.name,
-                             location=tuple(loc), rotation_euler=tuple(rot.to_euler('XYZ')),
-                             scale=tuple(scale), color=tuple(data.color),
-                             exposure=getattr(data, "exposure", 0.0),
-                             use_shadow=bool(data.use_shadow), extra=extra)
+    return core_lights.Light(
+        type=data.type,
+        energy=data.energy,
+        name=obj.name,
+        location=tuple(loc),
+        rotation_euler=tuple(rot.to_euler('XYZ')),
+        scale=tuple(scale),
+        color=tuple(data.color),
+        exposure=getattr(data, "exposure", 0.0),
+        use_shadow=bool(data.use_shadow),
+        extra=extra,
+    )
 
 
 def new_light_object(light: core_lights.Light, name: str) -> bpy.types.Object:
@@ -65,6 +74,7 @@ def _rendering_collections(scene: bpy.types.Scene) -> set:
         found.add(layer.collection)
         for child in layer.children:
             walk(child, hidden)
+
     if scene.view_layers:
         walk(scene.view_layers[0].layer_collection, False)
     return found
@@ -83,8 +93,14 @@ def scene_lights(scene: bpy.types.Scene, exclude=None) -> list:
     """The light objects the model shades in ``scene``, in slot order, and those left over:
     (used, unused). ``exclude``: the key Sun."""
     collections = _rendering_collections(scene)
-    candidates = [o for o in scene.objects if o.type == 'LIGHT' and o is not exclude
-                  and o.data.type in core_lights.TYPES and renders(o, scene, collections)]
+    candidates = [
+        o
+        for o in scene.objects
+        if o.type == 'LIGHT'
+        and o is not exclude
+        and o.data.type in core_lights.TYPES
+        and renders(o, scene, collections)
+    ]
     order = core_lights.ranked(candidates, key=as_light)
     return order[:LIGHT_SLOTS], order[LIGHT_SLOTS:]
 
@@ -92,9 +108,13 @@ def scene_lights(scene: bpy.types.Scene, exclude=None) -> list:
 def unsupported(obj: bpy.types.Object) -> list:
     """The light's settings the model does not follow, as labels."""
     data = obj.data
-    found = [label for key, off, label in UNSUPPORTED
-             if hasattr(data, key) and getattr(data, key) == off
-             and (key != "use_soft_falloff" or data.type in ('POINT', 'SPOT'))]
+    found = [
+        label
+        for key, off, label in UNSUPPORTED
+        if hasattr(data, key)
+        and getattr(data, key) == off
+        and (key != "use_soft_falloff" or data.type in ('POINT', 'SPOT'))
+    ]
     if data.type == 'AREA' and abs(getattr(data, "spread", 3.14159265) - 3.14159265) > 1e-4:
         found.append("Spread below 180°")
     if obj.matrix_world.determinant() < 0.0:
@@ -108,8 +128,9 @@ def sync_slots(tree: bpy.types.NodeTree, node: bpy.types.Node, objects: list) ->
     are emptied. Drivers on slot inputs must have been removed (model_node.remove_drivers)."""
     for slot in range(1, LIGHT_SLOTS + 1):
         obj = objects[slot - 1] if slot <= len(objects) else None
-        model_node.set_light_slot(node, slot, core_lights.slot_values(as_light(obj))
-                                  if obj is not None else None)
+        model_node.set_light_slot(
+            node, slot, core_lights.slot_values(as_light(obj)) if obj is not None else None
+        )
         if obj is not None:
             drivers.add_light_drivers(tree, node, slot, obj)
 
@@ -123,5 +144,4 @@ def slot_type(node: bpy.types.Node, slot: int) -> int:
 
 def state(objects: list) -> tuple:
     """What, changing, needs ``sync_slots`` again (drivers follow the rest)."""
-    return tuple((o.name, o.data.type, getattr(o.data, "shape", ""), o.data.name)
-                 for o in objects)
+    return tuple((o.name, o.data.type, getattr(o.data, "shape", ""), o.data.name) for o in objects)

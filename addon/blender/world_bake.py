@@ -44,8 +44,8 @@ from .drivers import world_lighting
 KEY_VERSION = 1
 FILE = "world.exr"
 SLOT = "Cook-Torrance Lab world bake"
-_busy = False                  # a bake is rendering (the depsgraph handler then stands aside)
-_hashes: dict = {}             # (path, size, mtime_ns) -> content hash
+_busy = False  # a bake is rendering (the depsgraph handler then stands aside)
+_hashes: dict = {}  # (path, size, mtime_ns) -> content hash
 
 
 def busy() -> bool:
@@ -57,13 +57,39 @@ def busy() -> bool:
 # The key: the node tree's content
 
 _NODE_BASE = {p.identifier for p in bpy.types.ShaderNode.bl_rna.properties} - {"mute"}
-_SKIP = {"rna_type", "name_full", "session_uid", "is_evaluated", "original", "users",
-         "use_fake_user", "use_extra_user", "is_embedded_data", "is_missing", "is_library_indirect",
-         "is_runtime_data", "tag", "is_dirty", "preview", "library_weak_reference",
-         "asset_data", "override_library", "id_type", "bindcode", "is_editmode",
-         "is_float", "has_data", "pixels", "frame_duration", "location",
-         "select", "show_expanded", "select_left_handle", "select_right_handle",
-         "select_control_point"}
+_SKIP = {
+    "rna_type",
+    "name_full",
+    "session_uid",
+    "is_evaluated",
+    "original",
+    "users",
+    "use_fake_user",
+    "use_extra_user",
+    "is_embedded_data",
+    "is_missing",
+    "is_library_indirect",
+    "is_runtime_data",
+    "tag",
+    "is_dirty",
+    "preview",
+    "library_weak_reference",
+    "asset_data",
+    "override_library",
+    "id_type",
+    "bindcode",
+    "is_editmode",
+    "is_float",
+    "has_data",
+    "pixels",
+    "frame_duration",
+    "location",
+    "select",
+    "show_expanded",
+    "select_left_handle",
+    "select_right_handle",
+    "select_control_point",
+}
 
 
 def _file_hash(path: Path) -> str:
@@ -79,20 +105,33 @@ def image_file(image: bpy.types.Image) -> Path:
 
 
 def _image(image: bpy.types.Image, content: bool) -> dict:
-    out = {"image": image.name, "source": image.source,
-           "colorspace": image.colorspace_settings.name, "alpha": image.alpha_mode}
+    out = {
+        "image": image.name,
+        "source": image.source,
+        "colorspace": image.colorspace_settings.name,
+        "alpha": image.alpha_mode,
+    }
     if image.packed_file is not None:
-        out["packed"] = hashlib.sha256(bytes(image.packed_file.data)).hexdigest() if content \
+        out["packed"] = (
+            hashlib.sha256(bytes(image.packed_file.data)).hexdigest()
+            if content
             else image.packed_file.size
+        )
     elif image.source == 'GENERATED':
-        out["generated"] = [image.generated_type, list(image.generated_color),
-                            image.generated_width, image.generated_height,
-                            image.use_generated_float]
+        out["generated"] = [
+            image.generated_type,
+            list(image.generated_color),
+            image.generated_width,
+            image.generated_height,
+            image.use_generated_float,
+        ]
     else:
         path = image_file(image)
         if not path.is_file():
-            raise UserError(f"the world's image {image.name!r} is missing: {path}; relink it "
-                            "or remove it from the world")
+            raise UserError(
+                f"the world's image {image.name!r} is missing: {path}; relink it "
+                "or remove it from the world"
+            )
         if content:
             out["sha256"] = _file_hash(path)
         else:
@@ -124,7 +163,7 @@ class _Describer:
             return _image(block, self.content)
         if isinstance(block, bpy.types.NodeTree):
             if block.name not in self.trees:
-                self.trees[block.name] = None            # a group inside itself stops here
+                self.trees[block.name] = None  # a group inside itself stops here
                 self.trees[block.name] = self.tree(block)
             return {"group": block.name}
         if isinstance(block, bpy.types.Object):
@@ -161,8 +200,12 @@ class _Describer:
         for node in sorted(tree.nodes, key=lambda n: n.name):
             if node.bl_idname == "NodeFrame":
                 continue
-            entry = {"name": node.name, "type": node.bl_idname,
-                     "props": self.struct(node, _NODE_BASE), "inputs": {}}
+            entry = {
+                "name": node.name,
+                "type": node.bl_idname,
+                "props": self.struct(node, _NODE_BASE),
+                "inputs": {},
+            }
             for sock in node.inputs:
                 if hasattr(sock, "default_value"):
                     value = _plain(sock.default_value)
@@ -170,8 +213,17 @@ class _Describer:
                         value = _plain(1.0)
                     entry["inputs"][sock.identifier] = value
             nodes.append(entry)
-        links = sorted([l.from_node.name, l.from_socket.identifier, l.to_node.name,
-                        l.to_socket.identifier, l.is_muted, l.is_valid] for l in tree.links)
+        links = sorted(
+            [
+                l.from_node.name,
+                l.from_socket.identifier,
+                l.to_node.name,
+                l.to_socket.identifier,
+                l.is_muted,
+                l.is_valid,
+            ]
+            for l in tree.links
+        )
         return {"nodes": nodes, "links": links}
 
 
@@ -182,8 +234,13 @@ def describe(world: bpy.types.World, width: int = 0, content: bool = True) -> di
     d = _Describer(content)
     background = world_lighting(world).background
     tree = d.tree(world.node_tree, background.name if background is not None else None)
-    return {"version": KEY_VERSION, "blender": bpy.app.version_string, "width": width,
-            "tree": tree, "groups": d.trees}
+    return {
+        "version": KEY_VERSION,
+        "blender": bpy.app.version_string,
+        "width": width,
+        "tree": tree,
+        "groups": d.trees,
+    }
 
 
 def signature(world: bpy.types.World, width: int = 0, content: bool = True) -> str:
@@ -194,11 +251,17 @@ def signature(world: bpy.types.World, width: int = 0, content: bool = True) -> s
 # ----------------------------------------------------------------------------------------
 # The bake
 
+
 def summary(world: bpy.types.World) -> str:
     """The kinds of node that make the world, for the panel: 'Sky Texture', 'Gradient
     Texture, Mix'."""
-    skip = {"ShaderNodeOutputWorld", "ShaderNodeBackground", "NodeReroute", "NodeFrame",
-            "ShaderNodeTexCoord"}
+    skip = {
+        "ShaderNodeOutputWorld",
+        "ShaderNodeBackground",
+        "NodeReroute",
+        "NodeFrame",
+        "ShaderNodeTexCoord",
+    }
     labels = sorted({n.bl_label for n in world.node_tree.nodes if n.bl_idname not in skip})
     if not labels:
         return "Background"
@@ -216,7 +279,7 @@ def _configure(scene: bpy.types.Scene, width: int) -> None:
     cy = scene.cycles
     cy.device = 'CPU'
     cy.shading_system = False
-    cy.samples = 1                    # one sample at each pixel centre: the world there
+    cy.samples = 1  # one sample at each pixel centre: the world there
     cy.pixel_filter_type = 'BOX'
     cy.filter_width = 0.01
     cy.use_denoising = False
@@ -233,7 +296,7 @@ def _configure(scene: bpy.types.Scene, width: int) -> None:
 def _camera(scene: bpy.types.Scene) -> bpy.types.Object:
     cam = bpy.data.cameras.new("Cook-Torrance Lab world bake")
     cam.type = 'PANO'
-    if hasattr(cam, "panorama_type"):                    # 4.0 and later
+    if hasattr(cam, "panorama_type"):  # 4.0 and later
         cam.panorama_type = 'EQUIRECTANGULAR'
     else:
         cam.cycles.panorama_type = 'EQUIRECTANGULAR'
@@ -249,18 +312,23 @@ def _camera(scene: bpy.types.Scene) -> bpy.types.Object:
     return obj
 
 
-SUN_SAMPLES = 1024            # per pixel of a sun disc's region (a box filter one pixel wide)
-SUN_MARGIN = 2                # pixels around the disc
+SUN_SAMPLES = 1024  # per pixel of a sun disc's region (a box filter one pixel wide)
+SUN_MARGIN = 2  # pixels around the disc
 
 
 def _sun_discs(world):
     """The world's Sky Textures that draw a sun disc where their direction is the world's
     (their Vector unlinked): a disc about half a degree wide, which one sample at each pixel
     centre would miss (its light lost) or hit (its light counted over whole pixels)."""
-    return [n for n in world.node_tree.nodes
-            if n.bl_idname == "ShaderNodeTexSky" and not n.mute and getattr(n, "sun_disc", False)
-            and n.sky_type not in ('PREETHAM', 'HOSEK_WILKIE')
-            and not any(sock.is_linked for sock in n.inputs)]
+    return [
+        n
+        for n in world.node_tree.nodes
+        if n.bl_idname == "ShaderNodeTexSky"
+        and not n.mute
+        and getattr(n, "sun_disc", False)
+        and n.sky_type not in ('PREETHAM', 'HOSEK_WILKIE')
+        and not any(sock.is_linked for sock in n.inputs)
+    ]
 
 
 def _sun_regions(sky, width):
@@ -272,8 +340,10 @@ def _sun_regions(sky, width):
     phi = math.pi / 2 - sky.sun_rotation
     a = sky.sun_size / 2 + 1e-3
     centre_row = (0.5 - e / math.pi) * h
-    rows = (max(0, math.floor(centre_row - a / math.pi * h) - SUN_MARGIN),
-            min(h, math.ceil(centre_row + a / math.pi * h) + SUN_MARGIN))
+    rows = (
+        max(0, math.floor(centre_row - a / math.pi * h) - SUN_MARGIN),
+        min(h, math.ceil(centre_row + a / math.pi * h) + SUN_MARGIN),
+    )
     e_max = max(abs(e - a), abs(e + a))
     if e_max >= math.radians(85):
         return [(rows, (0, width))]
@@ -298,18 +368,21 @@ def _refine(scene, width, rows, cols) -> None:
     r.use_border = True
     r.use_crop_to_border = True
     r.border_min_x, r.border_max_x = cols[0] / width, cols[1] / width
-    r.border_min_y, r.border_max_y = (h - rows[1]) / h, (h - rows[0]) / h   # from the bottom
+    r.border_min_y, r.border_max_y = (h - rows[1]) / h, (h - rows[0]) / h  # from the bottom
     scene.cycles.samples = SUN_SAMPLES
     scene.cycles.filter_width = 1.0
 
 
 def _render_pass(scene, path: Path) -> None:
     from . import renderer
+
     try:
         bpy.ops.render.render(write_still=False, scene=scene.name)
     except RuntimeError as exc:
-        raise UserError(f"the world could not be baked: {str(exc).strip().splitlines()[-1]}"
-                        " (is a render running? sync the lighting again after it)") from None
+        raise UserError(
+            f"the world could not be baked: {str(exc).strip().splitlines()[-1]}"
+            " (is a render running? sync the lighting again after it)"
+        ) from None
     image = bpy.data.images.get("Render Result")
     if image is None:
         raise UserError("the world could not be baked: Cycles gave no render result")
@@ -334,7 +407,7 @@ def render(world: bpy.types.World, width: int, path: Path) -> None:
             copy.node_tree.nodes[lighting.background.name].inputs["Strength"].default_value = 1.0
         settings = getattr(copy, "cycles", None)
         if settings is not None:
-            settings.sampling_method = 'NONE'       # nothing to light: no importance map
+            settings.sampling_method = 'NONE'  # nothing to light: no importance map
         scene = bpy.data.scenes.new("Cook-Torrance Lab world bake")
         scene.world = copy
         scene.frame_current = frame
@@ -343,8 +416,9 @@ def render(world: bpy.types.World, width: int, path: Path) -> None:
         if result is not None and result.type == 'RENDER_RESULT':
             # the user's last render stays in its slot
             slot_index = result.render_slots.active_index
-            slot = next((s for s in result.render_slots if s.name == SLOT), None) or \
-                result.render_slots.new(name=SLOT)
+            slot = next(
+                (s for s in result.render_slots if s.name == SLOT), None
+            ) or result.render_slots.new(name=SLOT)
             result.render_slots.active = slot
         regions = [r for sky in _sun_discs(world) for r in _sun_regions(sky, width)]
         if not regions:
@@ -361,9 +435,11 @@ def render(world: bpy.types.World, width: int, path: Path) -> None:
                 crop = read_pixels(part, "world bake")
                 part.unlink()
                 if crop.shape[:2] != (rows[1] - rows[0], cols[1] - cols[0]):
-                    raise UserError(f"the world could not be baked: Cycles cropped the sun's "
-                                    f"region to {crop.shape[1]}x{crop.shape[0]} pixels")
-                pixels[rows[0]:rows[1], cols[0]:cols[1]] = crop
+                    raise UserError(
+                        f"the world could not be baked: Cycles cropped the sun's "
+                        f"region to {crop.shape[1]}x{crop.shape[0]} pixels"
+                    )
+                pixels[rows[0] : rows[1], cols[0] : cols[1]] = crop
             write_float_exr(path, pixels)
     finally:
         if slot is not None:

@@ -53,7 +53,7 @@ def cache_dir(create: bool = True) -> Path:
         why = probe_writable(path)
         if why:
             raise _unusable(path, f"not writable: {why}")
-        remove_stale_temporaries(path)          # left by a killed bake, say
+        remove_stale_temporaries(path)  # left by a killed bake, say
     return path
 
 
@@ -61,8 +61,10 @@ files.cache_locator = lambda: cache_dir(create=False)
 
 
 def _unusable(path: Path, why: str) -> UserError:
-    return UserError(f"cache folder not usable: {path} ({why}); choose another in the "
-                     "add-on's preferences or set CTLAB_CACHE")
+    return UserError(
+        f"cache folder not usable: {path} ({why}); choose another in the "
+        "add-on's preferences or set CTLAB_CACHE"
+    )
 
 
 # ----------------------------------------------------------------------------------------
@@ -80,8 +82,11 @@ def _digest(path: Path) -> str:
 
 
 def _manifest(folder: Path) -> dict:
-    return {p.name: {"bytes": p.stat().st_size, "sha256": _digest(p)}
-            for p in sorted(Path(folder).iterdir()) if p.is_file() and p.name != MANIFEST}
+    return {
+        p.name: {"bytes": p.stat().st_size, "sha256": _digest(p)}
+        for p in sorted(Path(folder).iterdir())
+        if p.is_file() and p.name != MANIFEST
+    }
 
 
 def _listed(folder: Path) -> dict | None:
@@ -91,9 +96,18 @@ def _listed(folder: Path) -> dict | None:
         listed = json.loads((Path(folder) / MANIFEST).read_text())
     except (OSError, ValueError):
         return None
-    ok = isinstance(listed, dict) and bool(listed) and all(
-        isinstance(k, str) and k == Path(k).name and k not in (".", "..", MANIFEST)
-        and isinstance(v, dict) and set(v) == {"bytes", "sha256"} for k, v in listed.items())
+    ok = (
+        isinstance(listed, dict)
+        and bool(listed)
+        and all(
+            isinstance(k, str)
+            and k == Path(k).name
+            and k not in (".", "..", MANIFEST)
+            and isinstance(v, dict)
+            and set(v) == {"bytes", "sha256"}
+            for k, v in listed.items()
+        )
+    )
     return listed if ok else None
 
 
@@ -125,22 +139,27 @@ def _remove_damaged(folder: Path) -> None:
     the entry is refused with the reason."""
     listed = _listed(folder)
     if listed is None:
-        raise UserError(f"{folder} in the cache is not a cache entry ctlab wrote (no "
-                        "manifest of its files); it was left alone: move it away or choose "
-                        "another cache folder (CTLAB_CACHE, the add-on's preferences)")
-    others = sorted(p.name for p in folder.iterdir()
-                    if p.name not in listed and p.name != MANIFEST)
+        raise UserError(
+            f"{folder} in the cache is not a cache entry ctlab wrote (no "
+            "manifest of its files); it was left alone: move it away or choose "
+            "another cache folder (CTLAB_CACHE, the add-on's preferences)"
+        )
+    others = sorted(p.name for p in folder.iterdir() if p.name not in listed and p.name != MANIFEST)
     if others:
-        raise UserError(f"the cache entry {folder} holds {others[0]}, which ctlab did not "
-                        "write; it was left alone: move it away or choose another cache "
-                        "folder (CTLAB_CACHE, the add-on's preferences)")
+        raise UserError(
+            f"the cache entry {folder} holds {others[0]}, which ctlab did not "
+            "write; it was left alone: move it away or choose another cache "
+            "folder (CTLAB_CACHE, the add-on's preferences)"
+        )
     for name in listed:
         p = folder / name
         if p.is_file() and not p.is_symlink():
             p.unlink()
         elif p.exists() or p.is_symlink():
-            raise UserError(f"the cache entry {folder} holds {name}, which is not a file "
-                            "ctlab wrote; it was left alone: move it away")
+            raise UserError(
+                f"the cache entry {folder} holds {name}, which is not a file "
+                "ctlab wrote; it was left alone: move it away"
+            )
     (folder / MANIFEST).unlink(missing_ok=True)
     folder.rmdir()
 
@@ -148,9 +167,11 @@ def _remove_damaged(folder: Path) -> None:
 def build(key: str, fill) -> Path:
     """Build the cached folder ``key`` with fill(staging), sign it with its manifest, and
     put it in place whole (core.files.atomic_folder)."""
+
     def fill_and_sign(staging: Path) -> None:
         fill(staging)
         (staging / MANIFEST).write_text(json.dumps(_manifest(staging), indent=2))
+
     folder = cache_dir() / key
     if folder.exists() and not intact(folder):
         _remove_damaged(folder)

@@ -18,8 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from .errors import UserError
-from .files import atomic_path, atomic_paths, check_writable, finite_json, json_text, \
-    refuse_overwrite
+from .files import (
+    atomic_path,
+    atomic_paths,
+    check_writable,
+    finite_json,
+    json_text,
+    refuse_overwrite,
+)
 from .hdri import oiio, read_pixels
 from .model import REC709_LUMINANCE
 
@@ -50,14 +56,19 @@ def write_png_to(tmp: Path, rgb01: np.ndarray, final: Path) -> None:
 
 # --- Colour science -------------------------------------------------------------------
 
+
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
     c = np.asarray(c, dtype=np.float64)
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
-_SRGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
-                         [0.2126729, 0.7151522, 0.0721750],
-                         [0.0193339, 0.1191920, 0.9503041]])
+_SRGB_TO_XYZ = np.array(
+    [
+        [0.4124564, 0.3575761, 0.1804375],
+        [0.2126729, 0.7151522, 0.0721750],
+        [0.0193339, 0.1191920, 0.9503041],
+    ]
+)
 _WHITE_D65 = np.array([0.95047, 1.0, 1.08883])
 
 
@@ -66,11 +77,13 @@ def srgb_to_lab(c: np.ndarray) -> np.ndarray:
     xyz = srgb_to_linear(c) @ _SRGB_TO_XYZ.T / _WHITE_D65
     eps, kappa = 216 / 24389, 24389 / 27
     f = np.where(xyz > eps, np.cbrt(xyz), (kappa * xyz + 16) / 116)
-    return np.stack([116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]),
-                     200 * (f[..., 1] - f[..., 2])], axis=-1)
+    return np.stack(
+        [116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]), 200 * (f[..., 1] - f[..., 2])],
+        axis=-1,
+    )
 
 
-HUE_EPS = 1e-9       # degrees: hue differences this close to 180 count as 180
+HUE_EPS = 1e-9  # degrees: hue differences this close to 180 count as 180
 
 
 def ciede2000(lab1: np.ndarray, lab2: np.ndarray) -> np.ndarray:
@@ -79,7 +92,7 @@ def ciede2000(lab1: np.ndarray, lab2: np.ndarray) -> np.ndarray:
     L2, a2, b2 = np.moveaxis(np.asarray(lab2, dtype=np.float64), -1, 0)
     C1, C2 = np.hypot(a1, b1), np.hypot(a2, b2)
     Cbar = (C1 + C2) / 2
-    G = 0.5 * (1 - np.sqrt(Cbar ** 7 / (Cbar ** 7 + 25.0 ** 7)))
+    G = 0.5 * (1 - np.sqrt(Cbar**7 / (Cbar**7 + 25.0**7)))
     a1p, a2p = (1 + G) * a1, (1 + G) * a2
     C1p, C2p = np.hypot(a1p, b1), np.hypot(a2p, b2)
     h1p = np.degrees(np.arctan2(b1, a1p)) % 360
@@ -99,19 +112,26 @@ def ciede2000(lab1: np.ndarray, lab2: np.ndarray) -> np.ndarray:
     hsum = h1p + h2p
     hbp = np.where(beyond, np.where(hsum < 360, (hsum + 360) / 2, (hsum - 360) / 2), hsum / 2)
     hbp = np.where(C1p * C2p == 0, hsum, hbp)
-    T = (1 - 0.17 * np.cos(np.radians(hbp - 30)) + 0.24 * np.cos(np.radians(2 * hbp))
-         + 0.32 * np.cos(np.radians(3 * hbp + 6)) - 0.20 * np.cos(np.radians(4 * hbp - 63)))
+    T = (
+        1
+        - 0.17 * np.cos(np.radians(hbp - 30))
+        + 0.24 * np.cos(np.radians(2 * hbp))
+        + 0.32 * np.cos(np.radians(3 * hbp + 6))
+        - 0.20 * np.cos(np.radians(4 * hbp - 63))
+    )
     dtheta = 30 * np.exp(-(((hbp - 275) / 25) ** 2))
-    Rc = 2 * np.sqrt(Cbp ** 7 / (Cbp ** 7 + 25.0 ** 7))
+    Rc = 2 * np.sqrt(Cbp**7 / (Cbp**7 + 25.0**7))
     Sl = 1 + 0.015 * (Lbp - 50) ** 2 / np.sqrt(20 + (Lbp - 50) ** 2)
     Sc = 1 + 0.045 * Cbp
     Sh = 1 + 0.015 * Cbp * T
     Rt = -np.sin(np.radians(2 * dtheta)) * Rc
-    return np.sqrt((dLp / Sl) ** 2 + (dCp / Sc) ** 2 + (dHp / Sh) ** 2
-                   + Rt * (dCp / Sc) * (dHp / Sh))
+    return np.sqrt(
+        (dLp / Sl) ** 2 + (dCp / Sc) ** 2 + (dHp / Sh) ** 2 + Rt * (dCp / Sc) * (dHp / Sh)
+    )
 
 
 # --- Masks and metrics ------------------------------------------------------------------
+
 
 def cell_mask(shape, cell: dict, fraction: float = CELL_FRACTION) -> np.ndarray:
     """Pixels whose centres lie within fraction x radius of the sphere's centre."""
@@ -126,13 +146,15 @@ def metrics(lin_a, lin_b, disp_a, disp_b, de, mask) -> dict:
     mse_disp = float(np.mean((disp_a[mask].astype(np.float64) - disp_b[mask]) ** 2))
     y_a = float(np.mean(lin_a[mask] @ np.array(REC709_LUMINANCE)))
     y_b = float(np.mean(lin_b[mask] @ np.array(REC709_LUMINANCE)))
-    return {"pixels": int(mask.sum()),
-            "mae": float(np.mean(np.abs(d))),
-            "rmse": float(np.sqrt(np.mean(d ** 2))),
-            "rel_luminance_error": (y_a - y_b) / y_b if y_b > 0 else None,
-            "psnr_db": float(10 * math.log10(1.0 / mse_disp)) if mse_disp > 0 else float("inf"),
-            "ciede2000_mean": float(np.mean(de[mask])),
-            "ciede2000_p95": float(np.percentile(de[mask], 95))}
+    return {
+        "pixels": int(mask.sum()),
+        "mae": float(np.mean(np.abs(d))),
+        "rmse": float(np.sqrt(np.mean(d**2))),
+        "rel_luminance_error": (y_a - y_b) / y_b if y_b > 0 else None,
+        "psnr_db": float(10 * math.log10(1.0 / mse_disp)) if mse_disp > 0 else float("inf"),
+        "ciede2000_mean": float(np.mean(de[mask])),
+        "ciede2000_p95": float(np.percentile(de[mask], 95)),
+    }
 
 
 def heatmap(de: np.ndarray, vmax: float = 10.0) -> np.ndarray:
@@ -149,8 +171,10 @@ RENDER_FILES = ("render.exr", "render.png", "scene.json")
 
 def _scene_problem(scene) -> str | None:
     """What is wrong with a scene.json's content, or None (the keys compare reads)."""
+
     def number(x):
         return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
     if not isinstance(scene, dict):
         return "it is not a JSON object"
     for key in ("width", "height"):
@@ -180,13 +204,15 @@ def load_render(folder: Path):
     folder = Path(folder)
     for name in RENDER_FILES:
         if not (folder / name).is_file():
-            raise UserError(f"{folder} is not a render folder: {name} is missing "
-                            "(make it with 'ctlab render')")
+            raise UserError(
+                f"{folder} is not a render folder: {name} is missing (make it with 'ctlab render')"
+            )
     try:
         scene = json.loads((folder / "scene.json").read_text(encoding="utf-8"))
     except (ValueError, UnicodeDecodeError) as exc:
-        raise UserError(f"{folder / 'scene.json'} is not valid JSON ({exc}); render the "
-                        "folder again") from None
+        raise UserError(
+            f"{folder / 'scene.json'} is not valid JSON ({exc}); render the folder again"
+        ) from None
     problem = _scene_problem(scene)
     if problem:
         raise UserError(f"{folder / 'scene.json'} is not a render's description: {problem}")
@@ -194,8 +220,10 @@ def load_render(folder: Path):
     for name in ("render.exr", "render.png"):
         img = read_image(folder / name)
         if img.shape[:2] != (scene["height"], scene["width"]):
-            raise UserError(f"{folder / name} is {img.shape[1]}x{img.shape[0]}, but scene.json "
-                            f"says {scene['width']}x{scene['height']}; render the folder again")
+            raise UserError(
+                f"{folder / name} is {img.shape[1]}x{img.shape[0]}, but scene.json "
+                f"says {scene['width']}x{scene['height']}; render the folder again"
+            )
         bad = int((~np.isfinite(img)).any(axis=2).sum())
         if bad:
             raise UserError(f"{folder / name} holds {bad} NaN/Inf pixel(s); it cannot be compared")
@@ -208,29 +236,43 @@ def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
     lin_a, disp_a, scene_a = load_render(dir_a)
     lin_b, disp_b, scene_b = load_render(dir_b)
     if lin_a.shape != lin_b.shape:
-        raise UserError(f"renders differ in size: {lin_a.shape[1]}x{lin_a.shape[0]} vs "
-                        f"{lin_b.shape[1]}x{lin_b.shape[0]}; render both with the same --size")
+        raise UserError(
+            f"renders differ in size: {lin_a.shape[1]}x{lin_a.shape[0]} vs "
+            f"{lin_b.shape[1]}x{lin_b.shape[0]}; render both with the same --size"
+        )
     cells_a = [(c["row"], c["col"]) for c in scene_a["cells"]]
     if cells_a != [(c["row"], c["col"]) for c in scene_b["cells"]]:
         raise UserError("renders have different sphere grids; render both with the same --grid")
     masks = [cell_mask(lin_a.shape, cell) for cell in scene_a["cells"]]
     for cell, mask in zip(scene_a["cells"], masks):
         if not mask.any():
-            raise UserError(f"sphere {cell['row']},{cell['col']} of {dir_a} covers no pixel; "
-                            "render with a larger --size or a smaller --grid")
-    refuse_overwrite([Path(d) / n for d in (dir_a, dir_b) for n in RENDER_FILES],
-                     [Path(out_dir) / "metrics.json", Path(out_dir) / "diff.png"], [out_dir])
+            raise UserError(
+                f"sphere {cell['row']},{cell['col']} of {dir_a} covers no pixel; "
+                "render with a larger --size or a smaller --grid"
+            )
+    refuse_overwrite(
+        [Path(d) / n for d in (dir_a, dir_b) for n in RENDER_FILES],
+        [Path(out_dir) / "metrics.json", Path(out_dir) / "diff.png"],
+        [out_dir],
+    )
     out_dir = check_writable(out_dir)
     de = ciede2000(srgb_to_lab(disp_a), srgb_to_lab(disp_b))
     all_mask = np.logical_or.reduce(masks)
-    cells = [{k: cell[k] for k in ("row", "col", "metallic", "smoothness")}
-             | metrics(lin_a, lin_b, disp_a, disp_b, de, mask)
-             for cell, mask in zip(scene_a["cells"], masks)]
-    result = {"a": str(dir_a), "b": str(dir_b),
-              "a_shader": scene_a.get("shader"), "b_shader": scene_b.get("shader"),
-              "overall": metrics(lin_a, lin_b, disp_a, disp_b, de, all_mask),
-              "heatmap_max_ciede2000": 10.0, "cells": cells}
-    result = finite_json(result)       # standard JSON: an infinite PSNR (identical) is null
+    cells = [
+        {k: cell[k] for k in ("row", "col", "metallic", "smoothness")}
+        | metrics(lin_a, lin_b, disp_a, disp_b, de, mask)
+        for cell, mask in zip(scene_a["cells"], masks)
+    ]
+    result = {
+        "a": str(dir_a),
+        "b": str(dir_b),
+        "a_shader": scene_a.get("shader"),
+        "b_shader": scene_b.get("shader"),
+        "overall": metrics(lin_a, lin_b, disp_a, disp_b, de, all_mask),
+        "heatmap_max_ciede2000": 10.0,
+        "cells": cells,
+    }
+    result = finite_json(result)  # standard JSON: an infinite PSNR (identical) is null
     # both files or neither (a failed write of one keeps the other out too)
     with atomic_paths(out_dir / "diff.png", out_dir / "metrics.json") as (png, js):
         write_png_to(png, heatmap(de), out_dir / "diff.png")

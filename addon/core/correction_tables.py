@@ -10,12 +10,13 @@ from .ibl_bake import DFG_SIZE
 from .model import G_MODELS
 
 CORRECTION_VERSION = 1
-CORRECTION_SAMPLES = (128, 64)          # GGX half vectors per n.v (ibl_bake.ggx_half_vectors)
+CORRECTION_SAMPLES = (128, 64)  # GGX half vectors per n.v (ibl_bake.ggx_half_vectors)
 CORRECTION_DIFFUSE_SAMPLES = (128, 64)  # cosine-distributed l: s by phi in [0, pi]
 CORRECTION_TABLE_KINDS = ("residual", "positive", "lobes")
 DISNEY_TABLES = ("disney_positive", "disney_negative")
-CORRECTION_TABLES = tuple(f"{kind}_{g}" for kind in CORRECTION_TABLE_KINDS
-                          for g in G_MODELS) + DISNEY_TABLES
+CORRECTION_TABLES = (
+    tuple(f"{kind}_{g}" for kind in CORRECTION_TABLE_KINDS for g in G_MODELS) + DISNEY_TABLES
+)
 
 
 def kernel_mean_cosines() -> np.ndarray:
@@ -24,8 +25,9 @@ def kernel_mean_cosines() -> np.ndarray:
     in q = (1 - mu)/2, denser toward the peak."""
     from ..core.ibl_bake import LEVEL_ROUGHNESS, ggx_kernel
     from ..core.model import MIN_ALPHA
+
     s = (np.arange(20000) + 0.5) / 20000
-    q, dq = 0.5 * s ** 4, 2.0 * s ** 3 / 20000
+    q, dq = 0.5 * s**4, 2.0 * s**3 / 20000
     out = [1.0]
     for pr in LEVEL_ROUGHNESS[1:]:
         k = ggx_kernel(max(pr * pr, MIN_ALPHA))(q) * dq
@@ -37,6 +39,7 @@ def correction_tables(g_model: str, size: int | None = None) -> dict:
     """The tables above for one G: {kind: (size, size, 3) float32}."""
     from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis, ggx_half_vectors
     from ..core.model import MIN_ALPHA
+
     size = size or DFG_SIZE
     x = dfg_axis(size)
     nv = np.maximum(x, DFG_MIN_NDOTV)
@@ -45,11 +48,20 @@ def correction_tables(g_model: str, size: int | None = None) -> dict:
 
     def smith(nl, nv_, a):
         a2 = a * a
-        return 2.0 * nl * nv_ / np.maximum(nl * np.sqrt(nv_ * nv_ * (1 - a2) + a2)
-                                           + nv_ * np.sqrt(nl * nl * (1 - a2) + a2), 1e-30)
+        return (
+            2.0
+            * nl
+            * nv_
+            / np.maximum(
+                nl * np.sqrt(nv_ * nv_ * (1 - a2) + a2) + nv_ * np.sqrt(nl * nl * (1 - a2) + a2),
+                1e-30,
+            )
+        )
+
     disney = disney_tables(size)
-    tables["residual"][..., 2] = disney["disney_positive"][..., 0] + \
-        disney["disney_negative"][..., 0]
+    tables["residual"][..., 2] = (
+        disney["disney_positive"][..., 0] + disney["disney_negative"][..., 0]
+    )
     for j, pr in enumerate(x):
         if g_model == "smith_ggx_correlated":
             continue
@@ -70,8 +82,11 @@ def correction_tables(g_model: str, size: int | None = None) -> dict:
             w = np.maximum(sign * dg, 0.0) * vh / (nh * nv3) * q["weight"]
             total = np.sum(w, axis=(1, 2))
             cx, cz = np.sum(w * l_x, axis=(1, 2)), np.sum(w * nl, axis=(1, 2))
-            parts[part] = (np.sum(w * (1.0 - fc), axis=(1, 2)), np.sum(w * fc, axis=(1, 2)),
-                           *_lobe(total, cx, cz, rbar))
+            parts[part] = (
+                np.sum(w * (1.0 - fc), axis=(1, 2)),
+                np.sum(w * fc, axis=(1, 2)),
+                *_lobe(total, cx, cz, rbar),
+            )
         (a_p, b_p, c_p, x_p), (a_m, b_m, c_m, x_m) = parts["+"], parts["-"]
         tables["residual"][j, :, 0], tables["residual"][j, :, 1] = a_p + a_m, b_p + b_m
         tables["positive"][j] = np.stack([a_p, b_p, c_p], axis=-1)
@@ -92,6 +107,7 @@ def disney_tables(size: int | None = None) -> dict:
     midpoint grid over cosine-distributed l (Malley's method; v in the xz plane, phi in
     [0, pi] by symmetry), (l.h)^2 = (1 + l.v)/2."""
     from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis
+
     size = size or DFG_SIZE
     x = dfg_axis(size)
     nv = np.maximum(x, DFG_MIN_NDOTV)[:, None, None]
@@ -100,7 +116,7 @@ def disney_tables(size: int | None = None) -> dict:
     s = ((np.arange(ns) + 0.5) / ns)[None, :, None]
     phi = ((np.arange(nphi) + 0.5) / nphi * np.pi)[None, None, :]
     lx, lz = np.sqrt(s) * np.cos(phi), np.sqrt(1.0 - s)
-    lv = lx * np.sqrt(1.0 - nv * nv) + lz * nv           # v = (sin, 0, n.v)
+    lv = lx * np.sqrt(1.0 - nv * nv) + lz * nv  # v = (sin, 0, n.v)
     tables = {name: np.zeros((size, size, 3)) for name in DISNEY_TABLES}
     for j, pr in enumerate(x):
         fd90_m1 = pr * (1.0 + lv) - 0.5
@@ -118,9 +134,12 @@ def correction_table_folder():
     they depend on the model alone, integrated once per cache (about 3 s)."""
     from ..core import cache
     from ..core.hdri import write_float_exr
-    key = (f"correction-v{CORRECTION_VERSION}-{DFG_SIZE}-{CORRECTION_SAMPLES[0]}x"
-           f"{CORRECTION_SAMPLES[1]}-{CORRECTION_DIFFUSE_SAMPLES[0]}x"
-           f"{CORRECTION_DIFFUSE_SAMPLES[1]}")
+
+    key = (
+        f"correction-v{CORRECTION_VERSION}-{DFG_SIZE}-{CORRECTION_SAMPLES[0]}x"
+        f"{CORRECTION_SAMPLES[1]}-{CORRECTION_DIFFUSE_SAMPLES[0]}x"
+        f"{CORRECTION_DIFFUSE_SAMPLES[1]}"
+    )
 
     def fill(stage):
         for g in G_MODELS:
@@ -128,4 +147,5 @@ def correction_table_folder():
                 write_float_exr(stage / f"{kind}_{g}.exr", table)
         for name, table in disney_tables().items():
             write_float_exr(stage / f"{name}.exr", table)
+
     return cache.cached(key, fill)

@@ -18,8 +18,8 @@ import numpy as np
 from .hdri import uniform_world
 from .model import ModelOptions
 
-ROWS = 6                          # smoothness 1, 0.8, ... 0
-BINS = 9                          # view-angle bins of 10 degrees
+ROWS = 6  # smoothness 1, 0.8, ... 0
+BINS = 9  # view-angle bins of 10 degrees
 WIDTH, HEIGHT = 64, 64 * ROWS
 
 
@@ -28,15 +28,31 @@ def white_world() -> Path:
     return uniform_world((1.0, 1.0, 1.0))
 
 
-def furnace_settings(g_model: str, env_samples: int = 4, seed: int = 0, energy: str = "none",
-                     ibl: str = "reference"):
+def furnace_settings(
+    g_model: str, env_samples: int = 4, seed: int = 0, energy: str = "none", ibl: str = "reference"
+):
     from .settings import MatrixSettings
-    return MatrixSettings(rows=ROWS, cols=1, width=WIDTH, height=HEIGHT, hdri=str(white_world()),
-                          sun_strength=0.0, metallic=1.0, albedo=(1.0, 1.0, 1.0),
-                          mutual_shadows=False, shader="osl",
-                          model=ModelOptions(view="indirect_specular", g_model=g_model,
-                                             energy=energy, ibl=ibl, env_samples=env_samples,
-                                             seed=seed))
+
+    return MatrixSettings(
+        rows=ROWS,
+        cols=1,
+        width=WIDTH,
+        height=HEIGHT,
+        hdri=str(white_world()),
+        sun_strength=0.0,
+        metallic=1.0,
+        albedo=(1.0, 1.0, 1.0),
+        mutual_shadows=False,
+        shader="osl",
+        model=ModelOptions(
+            view="indirect_specular",
+            g_model=g_model,
+            energy=energy,
+            ibl=ibl,
+            env_samples=env_samples,
+            seed=seed,
+        ),
+    )
 
 
 def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list:
@@ -58,9 +74,14 @@ def directional_albedo(image: np.ndarray, scene: dict, bins: int = BINS) -> list
         counts = np.bincount(index, None, bins)
         mean = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
         centres = (np.arange(bins) + 0.5) * 90.0 / bins
-        curves.append({"smoothness": cell["smoothness"], "theta_deg": centres.tolist(),
-                       "albedo": [None if math.isnan(x) else float(x) for x in mean],
-                       "pixels": counts.astype(int).tolist()})
+        curves.append(
+            {
+                "smoothness": cell["smoothness"],
+                "theta_deg": centres.tolist(),
+                "albedo": [None if math.isnan(x) else float(x) for x in mean],
+                "pixels": counts.astype(int).tolist(),
+            }
+        )
     return curves
 
 
@@ -72,5 +93,3 @@ def mean_albedo(curve: dict) -> float:
     w = np.sin(t) * np.cos(t)
     ok = np.isfinite(e)
     return float(np.sum(e[ok] * w[ok]) / np.sum(w[ok]))
-
-

@@ -30,11 +30,11 @@ from .hdri import file_hash, load_hdri, write_float_exr
 from .ibl_bake import area_resample
 from .model import REC709_LUMINANCE
 
-TABLE_SIZE = 4096        # M: resolution of the inverse CDFs (the shader's ENV_TABLE_SIZE)
-TILE_ROWS = 128          # R (the shader's ENV_TILE_ROWS)
-TILE_COLS = 256          # C (the shader's ENV_TILE_COLS)
-FLOOR = 0.01             # every tile gets at least this fraction of the mean weight
-VERSION = 3               # 3: a fixed tile grid, whatever the HDRI's size
+TABLE_SIZE = 4096  # M: resolution of the inverse CDFs (the shader's ENV_TABLE_SIZE)
+TILE_ROWS = 128  # R (the shader's ENV_TILE_ROWS)
+TILE_COLS = 256  # C (the shader's ENV_TILE_COLS)
+FLOOR = 0.01  # every tile gets at least this fraction of the mean weight
+VERSION = 3  # 3: a fixed tile grid, whatever the HDRI's size
 
 
 def tile_weights(pixels: np.ndarray, rows: int = TILE_ROWS, cols: int = TILE_COLS) -> np.ndarray:
@@ -70,20 +70,28 @@ def build_tables(weights: np.ndarray, size: int = TABLE_SIZE):
     """(marginal, conditional, density) as float arrays, density exact for the tables."""
     rows, cols = weights.shape
     marginal = inverse_cdf(weights.sum(axis=1), size)
-    conditional = np.stack([inverse_cdf(weights[r], size) if weights[r].sum() > 0
-                            else np.arange(size) * cols // size for r in range(rows)])
+    conditional = np.stack(
+        [
+            inverse_cdf(weights[r], size)
+            if weights[r].sum() > 0
+            else np.arange(size) * cols // size
+            for r in range(rows)
+        ]
+    )
     p_row = np.bincount(marginal, minlength=rows) / size
     p_col = np.stack([np.bincount(conditional[r], minlength=cols) / size for r in range(rows)])
-    density = p_row[:, None] * p_col * rows * cols          # w.r.t. (s, t) in [0,1]^2
-    return (marginal[None, :].astype(np.float32), conditional.astype(np.float32),
-            density.astype(np.float32))
+    density = p_row[:, None] * p_col * rows * cols  # w.r.t. (s, t) in [0,1]^2
+    return (
+        marginal[None, :].astype(np.float32),
+        conditional.astype(np.float32),
+        density.astype(np.float32),
+    )
 
 
 def tables_for(hdri_path) -> dict:
     """Paths of the three tables for an HDRI, built once and cached by content hash."""
     hdri_path = Path(hdri_path)
-    key = (f"env-importance-v{VERSION}-{TILE_ROWS}x{TILE_COLS}-{TABLE_SIZE}-"
-           f"{file_hash(hdri_path)}")
+    key = f"env-importance-v{VERSION}-{TILE_ROWS}x{TILE_COLS}-{TABLE_SIZE}-{file_hash(hdri_path)}"
     names = ("marginal", "conditional", "pdf")
     folder = cache.lookup(key)
     if folder is None:
@@ -92,5 +100,6 @@ def tables_for(hdri_path) -> dict:
         def fill(staging: Path):
             for name in names:
                 write_float_exr(staging / f"{name}.exr", tables[name])
+
         folder = cache.build(key, fill)
     return {name: str(folder / f"{name}.exr") for name in names}

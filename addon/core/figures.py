@@ -19,13 +19,13 @@ from .brdf_plot import VIEW_TITLES, luminance, slice_name
 from .raster import Canvas, colormap, diverging
 from .svg import COLOURS, DASHES, SvgCanvas
 
-SLICE_DECADES = 7                     # a log slice shows max / 10^7 .. max
-SCALE = 4                              # screen pixels per slice pixel
+SLICE_DECADES = 7  # a log slice shows max / 10^7 .. max
+SCALE = 4  # screen pixels per slice pixel
 BLACK, GREY, LIGHT = (0.0, 0.0, 0.0), (0.4, 0.4, 0.4), (0.88, 0.88, 0.88)
 
 
 def _hex(colour: str) -> tuple:
-    return tuple(int(colour[i:i + 2], 16) / 255.0 for i in (1, 3, 5))
+    return tuple(int(colour[i : i + 2], 16) / 255.0 for i in (1, 3, 5))
 
 
 def number(x: float) -> str:
@@ -53,15 +53,18 @@ def slice_figure(values: np.ndarray, title: str, log: bool, diff: bool = False) 
         span = float(np.nanpercentile(np.abs(v), 95)) if np.isfinite(v).any() else 0.0
         span = min(max(_nice(span), 1e-3), 1.0)
         img, lo, hi = diverging(v / span), -span, span
-        ticks = [(x, f"{100 * x:+.3g}%" if x else "0") for x in (-span, -span / 2, 0.0,
-                                                                 span / 2, span)]
+        ticks = [
+            (x, f"{100 * x:+.3g}%" if x else "0") for x in (-span, -span / 2, 0.0, span / 2, span)
+        ]
     elif log:
         hi = float(np.max(v)) if np.max(v) > 0 else 1.0
-        lo = hi / 10 ** SLICE_DECADES
+        lo = hi / 10**SLICE_DECADES
         t = (np.log10(np.maximum(v, lo)) - math.log10(lo)) / (math.log10(hi) - math.log10(lo))
         img = colormap(t)
-        ticks = [(10.0 ** k, number(10.0 ** k)) for k in range(math.ceil(math.log10(lo)),
-                                                                 math.floor(math.log10(hi)) + 1)]
+        ticks = [
+            (10.0**k, number(10.0**k))
+            for k in range(math.ceil(math.log10(lo)), math.floor(math.log10(hi)) + 1)
+        ]
     else:
         lo, hi = 0.0, max(1.0, float(np.max(v)))
         img = colormap(v / hi)
@@ -75,10 +78,8 @@ def slice_figure(values: np.ndarray, title: str, log: bool, diff: bool = False) 
         y = top + size * deg / 90.0
         c.line([(left - 5, y), (left, y)], GREY, width=1)
         c.text(left - 8, y + 4, f"{deg}", size=11, anchor="end")
-    c.text(left + size / 2, top + size + 38, "θh, half-vector angle (°)", size=13,
-           anchor="middle")
-    c.text(20, top + size / 2, "θd, difference angle (°)", size=13, anchor="middle",
-           rotate=90)
+    c.text(left + size / 2, top + size + 38, "θh, half-vector angle (°)", size=13, anchor="middle")
+    c.text(20, top + size / 2, "θd, difference angle (°)", size=13, anchor="middle", rotate=90)
     # the colour bar
     bx, bw = left + size + 18, 16
     ramp = np.linspace(1, 0, size)[:, None] * np.ones((1, bw))
@@ -108,8 +109,9 @@ def _nice(x: float) -> float:
     return next(m * p for m in (1, 2, 5, 10) if m * p >= x)
 
 
-def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
-                height: int = 420, canvas=Canvas):
+def lobe_figure(
+    lobes: dict, labels: dict, title: str, width: int = 560, height: int = 420, canvas=Canvas
+):
     """f_r (n.l) (luminance) in the incidence plane as polar curves: the normal up, θl from
     -90° (left) to 90° (right), one colour per view angle θv, one dash pattern per variant
     (``lobes``: {tag: (len(θv), steps, 3)}); the radius is linear, 1 at the largest value."""
@@ -125,19 +127,30 @@ def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
     for deg in range(-90, 91, 30):
         a = math.radians(deg)
         c.line([(cx, cy), (cx + r * math.sin(a), cy - r * math.cos(a))], LIGHT, width=1)
-        c.text(cx + (r + 14) * math.sin(a), cy - (r + 14) * math.cos(a) + 4, f"{deg}°",
-               size=11, anchor="middle", colour=GREY)
+        c.text(
+            cx + (r + 14) * math.sin(a),
+            cy - (r + 14) * math.cos(a) + 4,
+            f"{deg}°",
+            size=11,
+            anchor="middle",
+            colour=GREY,
+        )
     c.line([(cx - r - 10, cy), (cx + r + 10, cy)], GREY, width=1)
     for i, tv in enumerate(bp.LOBE_VIEW_ANGLES):
         colour = _hex(COLOURS[i % len(COLOURS)])
         a = math.radians(tv)
-        c.line([(cx, cy), (cx + 0.18 * r * math.sin(a), cy - 0.18 * r * math.cos(a))], colour,
-               width=3)
+        c.line(
+            [(cx, cy), (cx + 0.18 * r * math.sin(a), cy - 0.18 * r * math.cos(a))], colour, width=3
+        )
         for k, values in enumerate(lobes.values()):
             rho = luminance(values[i]) / peak
             dash = DASHES[k % len(DASHES)] or None
-            c.line(list(zip(cx + r * rho * np.sin(theta_l), cy - r * rho * np.cos(theta_l))),
-                   colour, width=1.8, dash=dash)
+            c.line(
+                list(zip(cx + r * rho * np.sin(theta_l), cy - r * rho * np.cos(theta_l))),
+                colour,
+                width=1.8,
+                dash=dash,
+            )
     c.text(10, 20, title, size=13)
     y = 40
     for i, tv in enumerate(bp.LOBE_VIEW_ANGLES):
@@ -151,8 +164,14 @@ def lobe_figure(lobes: dict, labels: dict, title: str, width: int = 560,
         c.line([(x0, y - 4), (x0 + 24, y - 4)], BLACK, width=1.8, dash=dash)
         c.text(x0 + 30, y, labels[tag], size=11)
         y += 16
-    c.text(cx, height - 14, f"f_r (n·l), luminance; outer ring {number(peak)}", size=11,
-           anchor="middle", colour=GREY)
+    c.text(
+        cx,
+        height - 14,
+        f"f_r (n·l), luminance; outer ring {number(peak)}",
+        size=11,
+        anchor="middle",
+        colour=GREY,
+    )
     return c
 
 
@@ -164,6 +183,7 @@ def _view_angle_axes(c, box: tuple, y_max: float, y_label: str):
 
     def xy(t, e):
         return left + pw * t / 90.0, top + ph * (1 - e / y_max)
+
     for e in np.arange(0.0, y_max + 1e-9, 0.25 if y_max <= 2 else 0.5):
         x0, y0 = xy(0, e)
         c.line([(x0, y0), (x0 + pw, y0)], LIGHT, width=1)
@@ -172,14 +192,16 @@ def _view_angle_axes(c, box: tuple, y_max: float, y_label: str):
         x0, y0 = xy(t, 0)
         c.text(x0, y0 + 16, f"{t}", size=11, anchor="middle")
     c.rect(left, top, pw, ph, stroke=GREY)
-    c.text(left + pw / 2, top + ph + 34, "θv, view angle from the normal (°)", size=13,
-           anchor="middle")
+    c.text(
+        left + pw / 2, top + ph + 34, "θv, view angle from the normal (°)", size=13, anchor="middle"
+    )
     c.text(16, top + ph / 2, y_label, size=13, anchor="middle", rotate=90)
     return xy
 
 
-def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
-                  height: int = 420, canvas=Canvas):
+def albedo_figure(
+    albedos: dict, labels: dict, title: str, width: int = 560, height: int = 420, canvas=Canvas
+):
     """Directional albedo (luminance) against θv: total solid, specular dashed, diffuse
     dotted; one colour per variant (``albedos``: {tag: {"specular"|"diffuse"|"total":
     (len(θv), 3)}})."""
@@ -193,16 +215,15 @@ def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
     xy = _view_angle_axes(c, (left, top, pw, ph), y_max, "directional albedo")
     styles = (("total", None), ("specular", (6.0, 3.0)), ("diffuse", (2.0, 2.0)))
     y = top + ph + 56
-    for k, (tag, a) in enumerate(albedos.items()):          # a colour per variant
+    for k, (tag, a) in enumerate(albedos.items()):  # a colour per variant
         colour = COLOURS[k % len(COLOURS)]
         colour = _hex(colour)
         for part, dash in styles:
-            c.line([xy(t, e) for t, e in zip(tv, luminance(a[part]))], colour, width=1.8,
-                   dash=dash)
+            c.line([xy(t, e) for t, e in zip(tv, luminance(a[part]))], colour, width=1.8, dash=dash)
         c.line([(left, y - 4), (left + 24, y - 4)], colour, width=2.5)
         c.text(left + 30, y, labels[tag], size=11)
         y += 16
-    x = left                                                  # a dash pattern per part
+    x = left  # a dash pattern per part
     for part, dash in styles:
         c.line([(x, y - 4), (x + 24, y - 4)], BLACK, width=1.8, dash=dash)
         c.text(x + 30, y, part, size=11)
@@ -210,8 +231,7 @@ def albedo_figure(albedos: dict, labels: dict, title: str, width: int = 560,
     return c
 
 
-def furnace_figure(curves_by_g: dict, width: int = 720, height: int = 340,
-                   canvas=SvgCanvas):
+def furnace_figure(curves_by_g: dict, width: int = 720, height: int = 340, canvas=SvgCanvas):
     """The white furnace's directional albedo against θv (core/energy.py): one colour per
     smoothness, one dash pattern per curve set (a G, compensated or not; ``curves_by_g``:
     {label: [{"smoothness", "theta_deg", "albedo"}, ...]}, None where unresolved)."""
@@ -224,17 +244,27 @@ def furnace_figure(curves_by_g: dict, width: int = 720, height: int = 340,
         dash = DASHES[k % len(DASHES)] or None
         for i, curve in enumerate(curves):
             colour = _hex(COLOURS[i % len(COLOURS)])
-            c.line([xy(t, e) if e is not None else (math.nan, math.nan)
-                    for t, e in zip(curve["theta_deg"], curve["albedo"])], colour, width=1.6,
-                   dash=dash)
+            c.line(
+                [
+                    xy(t, e) if e is not None else (math.nan, math.nan)
+                    for t, e in zip(curve["theta_deg"], curve["albedo"])
+                ],
+                colour,
+                width=1.6,
+                dash=dash,
+            )
             if k == 0:
                 c.line([(legend_x, y - 4), (legend_x + 20, y - 4)], colour, width=2.5)
                 c.text(legend_x + 26, y, f"smoothness {curve['smoothness']:.1f}", size=11)
                 y += 15
     y += 8
     for k, label in enumerate(curves_by_g):
-        c.line([(legend_x, y - 4), (legend_x + 20, y - 4)], BLACK, width=1.2,
-               dash=DASHES[k % len(DASHES)] or None)
+        c.line(
+            [(legend_x, y - 4), (legend_x + 20, y - 4)],
+            BLACK,
+            width=1.2,
+            dash=DASHES[k % len(DASHES)] or None,
+        )
         c.text(legend_x + 26, y, label, size=11)
         y += 15
     return c
@@ -271,7 +301,8 @@ def figures(settings, results: dict, title: str) -> dict:
         with np.errstate(divide="ignore", invalid="ignore"):
             rel = np.where(a > 0, (b - a) / a, np.nan)
         out[slice_name(tag=f"diff_{tag}") + ".png"] = slice_figure(
-            rel, f"({labels[tag]} - this) / this", False, diff=True)
+            rel, f"({labels[tag]} - this) / this", False, diff=True
+        )
     out.update({f"{name}.png": c for name, c in curve_figures(results, title).items()})
     out["plot.png"] = side_by_side([out["slice.png"], out["lobe.png"], out["albedo.png"]])
     return out
@@ -284,6 +315,7 @@ def curve_figures(results: dict, title: str, canvas=Canvas) -> dict:
     tags = [t for t in results if t != "labels"]
     lobes = {t: results[t]["lobe"] for t in tags}
     albedos = {t: results[t]["albedo"] for t in tags}
-    return {"lobe": lobe_figure(lobes, labels, "Lobes: " + title, canvas=canvas),
-            "albedo": albedo_figure(albedos, labels, "Directional albedo: " + title,
-                                    canvas=canvas)}
+    return {
+        "lobe": lobe_figure(lobes, labels, "Lobes: " + title, canvas=canvas),
+        "albedo": albedo_figure(albedos, labels, "Directional albedo: " + title, canvas=canvas),
+    }

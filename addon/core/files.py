@@ -22,10 +22,10 @@ from pathlib import Path
 
 from .errors import UserError
 
-PACKAGE_ROOT = Path(__file__).resolve().parents[2]      # the extension / repository root
+PACKAGE_ROOT = Path(__file__).resolve().parents[2]  # the extension / repository root
 OSL_DIR = PACKAGE_ROOT / "osl"
 NODE_GROUPS_DIR = PACKAGE_ROOT / "node_groups"
-DATA_DIR = PACKAGE_ROOT / "addon" / "data"               # tables shipped with the extension
+DATA_DIR = PACKAGE_ROOT / "addon" / "data"  # tables shipped with the extension
 
 # The temporaries being written now, which an exit that cannot unwind (a signal during a
 # render, jobs/signals.py) removes; and their names: .NAME.<pid>-<random>.partial[.EXT]
@@ -43,7 +43,7 @@ def live_temporaries() -> list:
     for _ in range(100):
         try:
             return list(_live)
-        except RuntimeError:            # "Set changed size during iteration"
+        except RuntimeError:  # "Set changed size during iteration"
             continue
     return list(_live)
 
@@ -54,7 +54,7 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except OSError:
-        return True                      # another user's process
+        return True  # another user's process
     return True
 
 
@@ -78,7 +78,7 @@ def remove_stale_temporaries(folder: Path) -> int:
     return removed
 
 
-REPORT_MARK = b"<title>Cook-Torrance Lab:"      # in the head of every report ctlab writes
+REPORT_MARK = b"<title>Cook-Torrance Lab:"  # in the head of every report ctlab writes
 
 
 def forget_report(path) -> bool:
@@ -103,6 +103,7 @@ def refuse_overwrite(inputs, outputs, folders=()) -> None:
     """A job never writes over one of its own inputs (an HDRI named render.exr in --out), nor
     inside the cache, nor where a folder stands in an output file's place (core.paths)."""
     from .paths import check_job
+
     try:
         cache_folder = cache_locator() if cache_locator else None
     except UserError:
@@ -115,10 +116,15 @@ cache_locator = None
 
 
 # The errors of a write that a user can remedy: each one line naming the file and the cause.
-WRITE_ERRORS = {errno.ENOSPC: "the disk is full", errno.EFBIG: "a file-size limit was reached",
-                errno.EDQUOT: "the disk quota is exceeded", errno.EACCES: "permission denied",
-                errno.EPERM: "permission denied", errno.EROFS: "the file system is read-only",
-                errno.EIO: "an input/output error"}
+WRITE_ERRORS = {
+    errno.ENOSPC: "the disk is full",
+    errno.EFBIG: "a file-size limit was reached",
+    errno.EDQUOT: "the disk quota is exceeded",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "permission denied",
+    errno.EROFS: "the file system is read-only",
+    errno.EIO: "an input/output error",
+}
 
 
 def public(path) -> Path:
@@ -126,7 +132,7 @@ def public(path) -> Path:
     a writer nested in a staged set names the file it stands for."""
     path = Path(path)
     while m := _STAGING.match(path.name):
-        path = path.with_name(path.name[1:m.start(1) - 1] + (m[2] or ""))
+        path = path.with_name(path.name[1 : m.start(1) - 1] + (m[2] or ""))
     return path
 
 
@@ -136,8 +142,10 @@ def write_error(exc: OSError, path) -> UserError | None:
     if cause is None:
         return None
     path = public(path)
-    return UserError(f"cannot write {path}: {cause} ({exc.strerror or exc}); nothing was "
-                     "kept; free space or choose another --out")
+    return UserError(
+        f"cannot write {path}: {cause} ({exc.strerror or exc}); nothing was "
+        "kept; free space or choose another --out"
+    )
 
 
 _IMAGE_SUFFIXES = {".exr", ".png", ".hdr", ".tif", ".tiff", ".jpg"}
@@ -149,8 +157,11 @@ def verify(tmp: Path, final: Path) -> None:
     final = public(final)
 
     def fail(why):
-        raise UserError(f"cannot write {final}: {why}; nothing was kept (the disk may be "
-                        "full or a file-size limit reached)")
+        raise UserError(
+            f"cannot write {final}: {why}; nothing was kept (the disk may be "
+            "full or a file-size limit reached)"
+        )
+
     try:
         st = os.lstat(tmp)
     except OSError:
@@ -202,6 +213,7 @@ def _read_any(path) -> None:
 
 def _read_all(path) -> None:
     import OpenImageIO as OIIO
+
     inp = OIIO.ImageInput.open(str(path))
     if inp is None:
         raise UserError(OIIO.geterror().strip() or "unknown format")
@@ -293,7 +305,7 @@ def temporary_folder(prefix: str):
     """A private folder in the system's temporary folder, registered with the cleanup of an
     interrupt (jobs/signals.py) and removed after the block."""
     folder = Path(tempfile.gettempdir()) / f"{prefix}{secrets.token_hex(6)}"
-    _live.add(folder)                      # before it exists: a signal never misses it
+    _live.add(folder)  # before it exists: a signal never misses it
     try:
         folder.mkdir(mode=0o700)
         yield folder
@@ -335,8 +347,9 @@ def check_writable(out_dir: Path) -> Path:
         with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".ctlab-probe-"):
             pass
     except OSError as exc:
-        raise UserError(f"output folder not writable: {out_dir} ({exc.strerror or exc}); "
-                        "choose another --out") from None
+        raise UserError(
+            f"output folder not writable: {out_dir} ({exc.strerror or exc}); choose another --out"
+        ) from None
     return out_dir
 
 

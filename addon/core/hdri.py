@@ -18,9 +18,11 @@ def oiio():
     try:
         import OpenImageIO
     except ImportError:
-        raise UserError("Blender's bundled OpenImageIO Python module cannot be imported; "
-                        "Cook-Torrance Lab needs Blender 4.5 or newer (as an application or "
-                        "the bpy module, with its bundled modules exposed)") from None
+        raise UserError(
+            "Blender's bundled OpenImageIO Python module cannot be imported; "
+            "Cook-Torrance Lab needs Blender 4.5 or newer (as an application or "
+            "the bpy module, with its bundled modules exposed)"
+        ) from None
     return OpenImageIO
 
 
@@ -41,14 +43,20 @@ def read_hdri(path, repair: bool = False):
     Raises UserError when the file is missing or unreadable, not floating point, has fewer
     than 3 channels or is not 2:1 equirectangular."""
     from .paths import input_file
-    path = input_file(path, "HDRI", missing=f"HDRI not found: {path} (give an existing "
-                      "equirectangular .exr or .hdr file)")       # the one path gate
+
+    path = input_file(
+        path,
+        "HDRI",
+        missing=f"HDRI not found: {path} (give an existing equirectangular .exr or .hdr file)",
+    )  # the one path gate
     st = path.stat()
     pixels, count = _decode(str(path), st.st_size, st.st_mtime_ns)
     if count and not repair:
-        raise UserError(f"HDRI holds {count} NaN/Inf pixel(s): {path}; no job uses such an "
-                        "image (a render would carry them): repair it first, e.g. oiiotool "
-                        "IN --fixnan black -o OUT")
+        raise UserError(
+            f"HDRI holds {count} NaN/Inf pixel(s): {path}; no job uses such an "
+            "image (a render would carry them): repair it first, e.g. oiiotool "
+            "IN --fixnan black -o OUT"
+        )
     return pixels, count
 
 
@@ -60,34 +68,41 @@ def read_pixels(path, what: str = "image", check=None) -> np.ndarray:
     OIIO = oiio()
     inp = OIIO.ImageInput.open(str(path))
     if inp is None:
-        raise UserError(f"{what} unreadable: {path} "
-                        f"({OIIO.geterror().strip() or 'unknown format'})")
+        raise UserError(
+            f"{what} unreadable: {path} ({OIIO.geterror().strip() or 'unknown format'})"
+        )
     try:
         spec = inp.spec()
         if check is not None:
             check(spec, OIIO)
         if spec.nchannels < 3:
-            raise UserError(f"{what} has {spec.nchannels} channel(s): {path}; an RGB image is "
-                            "needed")
+            raise UserError(
+                f"{what} has {spec.nchannels} channel(s): {path}; an RGB image is needed"
+            )
         pixels = inp.read_image(0, 0, 0, 3, OIIO.FLOAT)
         failed = inp.has_error
         detail = inp.geterror().strip() if failed else ""
     finally:
         inp.close()
     if pixels is None or failed:
-        raise UserError(f"{what} unreadable: {path} (the pixel data is corrupt or truncated"
-                        + (f": {detail}" if detail else "") + ")")
+        raise UserError(
+            f"{what} unreadable: {path} (the pixel data is corrupt or truncated"
+            + (f": {detail}" if detail else "")
+            + ")"
+        )
     return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
 
 
 def _equirectangular_float(path):
     def check(spec, OIIO):
         if spec.format.basetype not in (OIIO.FLOAT, OIIO.HALF, OIIO.DOUBLE):
-            raise UserError(f"HDRI is not floating point: {path} has {spec.format} pixels; "
-                            "use a scene-linear float image (.exr or .hdr)")
+            raise UserError(
+                f"HDRI is not floating point: {path} has {spec.format} pixels; "
+                "use a scene-linear float image (.exr or .hdr)"
+            )
         if spec.nchannels >= 3 and spec.width != 2 * spec.height:
-            raise UserError(f"HDRI is {spec.width}x{spec.height}, not 2:1 equirectangular: "
-                            f"{path}")
+            raise UserError(f"HDRI is {spec.width}x{spec.height}, not 2:1 equirectangular: {path}")
+
     return check
 
 
@@ -145,8 +160,13 @@ def uniform_world(colour) -> Path:
     """A small equirectangular image of one colour (a world without an image, the white
     furnace), kept in the cache."""
     from . import cache
+
     colour = tuple(float(c) for c in colour[:3])
     key = "uniform-%.6g-%.6g-%.6g" % colour
-    folder = cache.cached(key, lambda stage: write_float_exr(
-        stage / "world.exr", np.broadcast_to(np.float32(colour), (8, 16, 3)).copy()))
+    folder = cache.cached(
+        key,
+        lambda stage: write_float_exr(
+            stage / "world.exr", np.broadcast_to(np.float32(colour), (8, 16, 3)).copy()
+        ),
+    )
     return folder / "world.exr"

@@ -43,7 +43,7 @@ from .files import DATA_DIR, check_writable, copy_file, refuse_overwrite, write_
 from .hdri import file_hash, load_hdri, write_float_exr
 from .model import G_MODELS, MIN_ALPHA
 
-VERSION = 5      # 4: the multiple-scattering tables (ms_<G>.exr); 5: their dominant direction
+VERSION = 5  # 4: the multiple-scattering tables (ms_<G>.exr); 5: their dominant direction
 LEVEL_COUNT = 7
 LEVEL_ROUGHNESS = tuple(m / (LEVEL_COUNT - 1) for m in range(LEVEL_COUNT))
 # Width of each pre-filtered level (0: the source's own); the lobe's half-width spans >= 3 texels.
@@ -52,8 +52,11 @@ IRRADIANCE_WIDTH = 128
 DFG_SIZE = 64
 # Quadrature grid per table entry (GGX inverse CDF, azimuth); Cook-Torrance's min() has kinks
 # in azimuth that need the finer grid. Both stay within 4e-4 of a 16x finer grid.
-DFG_SAMPLES = {"cook_torrance": (256, 128), "smith_ggx_correlated": (256, 64),
-               "unity_smith_joint": (256, 64)}
+DFG_SAMPLES = {
+    "cook_torrance": (256, 128),
+    "smith_ggx_correlated": (256, 64),
+    "unity_smith_joint": (256, 64),
+}
 
 
 def level_file(m: int) -> str:
@@ -78,6 +81,7 @@ INFO_FILE = "bake.json"
 
 # ---------------------------------------------------------------------------------------
 # The lat-long grid (Blender's Environment Texture: row 0 is the top, elevation +pi/2)
+
 
 def row_elevations(h: int) -> np.ndarray:
     """Elevation of each row's centre, top row first."""
@@ -115,16 +119,18 @@ def downsample(img: np.ndarray, w: int) -> np.ndarray:
     if W == w:
         return img.astype(np.float32)
     dw = row_solid_angles(H, W)
-    if H % h == 0 and W % w == 0:               # whole blocks: a weighted block mean
+    if H % h == 0 and W % w == 0:  # whole blocks: a weighted block mean
         fy, fx = H // h, W // w
         weighted = (img * dw[:, None, None].astype(np.float32)).reshape(h, fy, w, fx, 3)
-        return (weighted.sum(axis=(1, 3)) / (dw.reshape(h, fy).sum(axis=1)[:, None, None] * fx)
-                ).astype(np.float32)
+        return (
+            weighted.sum(axis=(1, 3)) / (dw.reshape(h, fy).sum(axis=1)[:, None, None] * fx)
+        ).astype(np.float32)
     return area_resample(area_resample(img, h, 0, dw), w, 1, None)
 
 
 # ---------------------------------------------------------------------------------------
 # Zonal convolution
+
 
 def ggx_kernel(alpha: float):
     """K(q) = D(h) max(mu, 0) with mu = r.l = 1 - 2q; (n.h)^2 = 1 - q, so the GGX denominator
@@ -134,6 +140,7 @@ def ggx_kernel(alpha: float):
     def K(q):
         d = q + a2 * (1.0 - q)
         return (a2 / np.pi) / (d * d) * np.maximum(1.0 - 2.0 * q, 0.0)
+
     return K
 
 
@@ -153,21 +160,21 @@ def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) ->
     h, w, _ = src.shape
     elev = row_elevations(h)
     dw = row_solid_angles(h, w)
-    sin2_half_dphi = (np.sin(np.pi * np.arange(w) / w) ** 2).astype(np.float32)   # dphi = 2 pi k / w
-    src_hat = np.fft.rfft(src.astype(np.float64) * dw[:, None, None], axis=1)     # (h, f, 3)
+    sin2_half_dphi = (np.sin(np.pi * np.arange(w) / w) ** 2).astype(np.float32)  # dphi = 2 pi k / w
+    src_hat = np.fft.rfft(src.astype(np.float64) * dw[:, None, None], axis=1)  # (h, f, 3)
     out = np.empty((h, w, 3), dtype=np.float32)
     for i0 in range(0, h, chunk):
         rows = np.arange(i0, min(h, i0 + chunk))
-        de = elev[rows][:, None] - elev[None, :]                                  # (c, h)
+        de = elev[rows][:, None] - elev[None, :]  # (c, h)
         a = (np.sin(de / 2) ** 2).astype(np.float32)
         b = (np.cos(elev[rows])[:, None] * np.cos(elev)[None, :]).astype(np.float32)
-        q = a[:, :, None] + b[:, :, None] * sin2_half_dphi[None, None, :]          # (c, h, w)
+        q = a[:, :, None] + b[:, :, None] * sin2_half_dphi[None, None, :]  # (c, h, w)
         k = kernel(q).astype(np.float32)
-        k_hat = np.fft.rfft(k, axis=2)                                            # (c, h, f)
+        k_hat = np.fft.rfft(k, axis=2)  # (c, h, f)
         acc = np.einsum("cjf,jfk->cfk", k_hat, src_hat)
-        res = np.fft.irfft(acc, n=w, axis=1)                                      # (c, w, 3)
+        res = np.fft.irfft(acc, n=w, axis=1)  # (c, w, 3)
         if normalize:
-            total = (k_hat[:, :, 0].real * dw[None, :]).sum(axis=1)               # (c,)
+            total = (k_hat[:, :, 0].real * dw[None, :]).sum(axis=1)  # (c,)
             res = res / np.maximum(total, 1e-30)[:, None, None]
         out[rows] = res
     if normalize:
@@ -177,6 +184,7 @@ def zonal_convolve(src: np.ndarray, kernel, normalize: bool, chunk: int = 16) ->
 
 # ---------------------------------------------------------------------------------------
 # The DFG table (independent of the HDRI: cached once per model version)
+
 
 def ggx_half_vectors(nv: np.ndarray, a: float, nu: int, nphi: int) -> dict:
     """The quadrature of the DFG table, for any integrand g(h) over GGX half vectors:
@@ -204,12 +212,20 @@ def ggx_half_vectors(nv: np.ndarray, a: float, nu: int, nphi: int) -> dict:
     phi = ((np.arange(nphi) + 0.5) / nphi)[None, None, :] * phi_max
     vh = np.clip(sv * sh * np.cos(phi) + nv * nh, 0.0, 1.0)
     nl = np.clip(2.0 * vh * nh - nv, 0.0, 1.0)
-    return {"nh": nh, "sh": sh, "phi": phi, "vh": vh, "nl": nl, "sv": sv,
-            "weight": du * phi_max / (np.pi * nu * nphi)}
+    return {
+        "nh": nh,
+        "sh": sh,
+        "phi": phi,
+        "vh": vh,
+        "nl": nl,
+        "sv": sv,
+        "weight": du * phi_max / (np.pi * nu * nphi),
+    }
 
 
-def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int,
-                         centroid: bool = False):
+def _specular_scale_bias(
+    g_model: str, nv: np.ndarray, pr: float, nu: int, nphi: int, centroid: bool = False
+):
     """A(n.v), B(n.v) at one perceptual roughness: integral f_s (n.l) dl = F0 A + B, each
     half vector of ggx_half_vectors adding F G (v.h) / ((n.h)(n.v)) (Karis 2013), with
     F = F0 (1 - Fc) + Fc, Fc = (1 - v.h)^5."""
@@ -218,8 +234,16 @@ def _specular_scale_bias(g_model: str, nv: np.ndarray, pr: float, nu: int, nphi:
     nh, sh, phi, vh, nl, sv = (q[k] for k in ("nh", "sh", "phi", "vh", "nl", "sv"))
     nv = nv[:, None, None]
     if g_model == "smith_ggx_correlated":
-        G = 2.0 * nl * nv / np.maximum(nl * np.sqrt(nv * nv * (1 - a * a) + a * a)
-                                       + nv * np.sqrt(nl * nl * (1 - a * a) + a * a), 1e-30)
+        G = (
+            2.0
+            * nl
+            * nv
+            / np.maximum(
+                nl * np.sqrt(nv * nv * (1 - a * a) + a * a)
+                + nv * np.sqrt(nl * nl * (1 - a * a) + a * a),
+                1e-30,
+            )
+        )
     elif g_model == "unity_smith_joint":
         G = 2.0 * nl * nv / (nl * (nv * (1 - a) + a) + nv * (nl * (1 - a) + a) + 1e-5)
     else:
@@ -263,8 +287,10 @@ def dfg_table(g_model: str, size: int = DFG_SIZE, samples=None) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 # The bake: cached by the HDRI's content hash and the bake parameters
 
+
 def _params_key() -> str:
     import hashlib
+
     sig = json.dumps([VERSION, LEVEL_WIDTHS, IRRADIANCE_WIDTH, DFG_SIZE, DFG_SAMPLES])
     return hashlib.sha256(sig.encode()).hexdigest()[:8]
 
@@ -273,10 +299,15 @@ def _params_key() -> str:
 # by scripts/build_tables.py; tests/render/test_ibl_bake.py checks that integrating them again gives
 # the same values): a first bake reads them instead of integrating for seconds.
 
+
 def table_signature() -> dict:
     """What the DFG tables depend on: a shipped table is used only when this matches."""
-    return {"version": VERSION, "size": DFG_SIZE, "min_ndotv": DFG_MIN_NDOTV,
-            "samples": {g: list(s) for g, s in DFG_SAMPLES.items()}}
+    return {
+        "version": VERSION,
+        "size": DFG_SIZE,
+        "min_ndotv": DFG_MIN_NDOTV,
+        "samples": {g: list(s) for g, s in DFG_SAMPLES.items()},
+    }
 
 
 def _shipped(name: str, shape: tuple) -> np.ndarray | None:
@@ -354,13 +385,15 @@ def tables_folder() -> Path:
     """The model's HDRI-independent tables in the cache, one folder: dfg_<G>.exr and
     ms_<G>.exr for every G option (the OSL shader's energy compensation reads them)."""
     key = f"tables-v{VERSION}-{DFG_SIZE}-" + "-".join(
-        f"{g}{s[0]}x{s[1]}" for g, s in DFG_SAMPLES.items())
+        f"{g}{s[0]}x{s[1]}" for g, s in DFG_SAMPLES.items()
+    )
 
     def fill(stage):
         for g in G_MODELS:
             dfg = dfg_values(g)
             write_float_exr(stage / dfg_file(g), dfg)
             write_float_exr(stage / ms_file(g), ms_table(dfg, dominant_values(g)))
+
     return cache.cached(key, fill)
 
 
@@ -376,6 +409,7 @@ def dfg_path(g_model: str) -> Path:
 
     def fill(stage):
         write_float_exr(stage / "dfg.exr", dfg_values(g_model))
+
     return cache.cached(key, fill) / "dfg.exr"
 
 
@@ -390,9 +424,10 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
     ``progress(fraction, message)`` is called as the work advances, ``warn(message)`` for
     repaired input. Raises UserError for unusable input (hdri.read_hdri)."""
     from .hdri import read_hdri
+
     hdri_path = Path(hdri_path)
     if not hdri_path.is_file():
-        load_hdri(hdri_path)                    # raises the standard "not found" message
+        load_hdri(hdri_path)  # raises the standard "not found" message
     source_hash = file_hash(hdri_path)
     name = f"ibl-v{VERSION}-{_params_key()}-{source_hash}"
     folder = cache.lookup(name)
@@ -407,7 +442,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
     for g in G_MODELS:
         _report(progress, 0.05, f"DFG table ({g}; once per cache)")
         dfg[g] = dfg_path(g)
-    start = time.perf_counter()           # the HDRI's own bake, after the shared DFG tables
+    start = time.perf_counter()  # the HDRI's own bake, after the shared DFG tables
     timings = {}
 
     def fill(stage: Path):
@@ -415,8 +450,9 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
         sources = {}
         levels = []
         for m, pr in enumerate(LEVEL_ROUGHNESS):
-            _report(progress, 0.1 + 0.75 * m / LEVEL_COUNT,
-                    f"specular level {m} (roughness {pr:.3f})")
+            _report(
+                progress, 0.1 + 0.75 * m / LEVEL_COUNT, f"specular level {m} (roughness {pr:.3f})"
+            )
             t = time.perf_counter()
             if m == 0:
                 level = pixels
@@ -427,31 +463,49 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
                 level = zonal_convolve(sources[w], ggx_kernel(max(pr * pr, MIN_ALPHA)), True)
             write_float_exr(stage / level_file(m), level)
             timings[level_file(m)] = round(time.perf_counter() - t, 3)
-            levels.append({"file": level_file(m), "perceptual_roughness": pr,
-                           "width": level.shape[1], "height": level.shape[0]})
+            levels.append(
+                {
+                    "file": level_file(m),
+                    "perceptual_roughness": pr,
+                    "width": level.shape[1],
+                    "height": level.shape[0],
+                }
+            )
         _report(progress, 0.9, "irradiance")
         t = time.perf_counter()
         w = min(IRRADIANCE_WIDTH, W)
         src = sources.get(w)
         if src is None:
             src = downsample(pixels, w)
-        irr = np.pi * zonal_convolve(src, cosine_kernel, True)     # integral max(n.l,0) dl = pi
+        irr = np.pi * zonal_convolve(src, cosine_kernel, True)  # integral max(n.l,0) dl = pi
         write_float_exr(stage / IRRADIANCE_FILE, irr)
         timings[IRRADIANCE_FILE] = round(time.perf_counter() - t, 3)
         for g, path in dfg.items():
             shutil.copyfile(path, stage / dfg_file(g))
             shutil.copyfile(tables / ms_file(g), stage / ms_file(g))
-        info = {"version": VERSION, "source": str(hdri_path), "source_hash": source_hash,
-                "source_size": [W, H], "repaired_texels": repaired, "levels": levels,
-                "irradiance": {"file": IRRADIANCE_FILE, "width": irr.shape[1],
-                               "height": irr.shape[0], "stores": "E (uniform radiance 1 gives pi)"},
-                "dfg": {g: dfg_file(g) for g in dfg}, "dfg_size": DFG_SIZE,
-                "dfg_axes": "column i: n.v = i/(N-1) (column 0: n.v = 1e-3); row j (top "
-                            "first): pr = j/(N-1); look up at ((x (N-1) + 0.5)/N)",
-                "dfg_channels": ["A (specColor scale)", "B (bias)", "Disney diffuse factor"],
-                "ms": {g: ms_file(g) for g in dfg},
-                "ms_channels": ["E = A + B (F = 1)", "E_avg", "0"],
-                "seconds": round(time.perf_counter() - start, 3), "timings": timings}
+        info = {
+            "version": VERSION,
+            "source": str(hdri_path),
+            "source_hash": source_hash,
+            "source_size": [W, H],
+            "repaired_texels": repaired,
+            "levels": levels,
+            "irradiance": {
+                "file": IRRADIANCE_FILE,
+                "width": irr.shape[1],
+                "height": irr.shape[0],
+                "stores": "E (uniform radiance 1 gives pi)",
+            },
+            "dfg": {g: dfg_file(g) for g in dfg},
+            "dfg_size": DFG_SIZE,
+            "dfg_axes": "column i: n.v = i/(N-1) (column 0: n.v = 1e-3); row j (top "
+            "first): pr = j/(N-1); look up at ((x (N-1) + 0.5)/N)",
+            "dfg_channels": ["A (specColor scale)", "B (bias)", "Disney diffuse factor"],
+            "ms": {g: ms_file(g) for g in dfg},
+            "ms_channels": ["E = A + B (F = 1)", "E_avg", "0"],
+            "seconds": round(time.perf_counter() - start, 3),
+            "timings": timings,
+        }
         write_json(stage / INFO_FILE, info)
 
     folder = cache.build(name, fill)
@@ -461,16 +515,21 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
 
 def file_names() -> list:
     """The files of a bake, as ``export`` copies them."""
-    return ([level_file(m) for m in range(LEVEL_COUNT)] + [IRRADIANCE_FILE, INFO_FILE]
-            + [dfg_file(g) for g in G_MODELS] + [ms_file(g) for g in G_MODELS])
+    return (
+        [level_file(m) for m in range(LEVEL_COUNT)]
+        + [IRRADIANCE_FILE, INFO_FILE]
+        + [dfg_file(g) for g in G_MODELS]
+        + [ms_file(g) for g in G_MODELS]
+    )
 
 
 def export(folder: Path, out_dir: Path, source=None) -> None:
     """Copy a bake folder's files into out_dir, each whole or not at all, never over the
     ``source`` HDRI."""
     out_dir = check_writable(out_dir)
-    files = sorted(f for f in Path(folder).iterdir()
-                   if not f.name.startswith(".") and f.name != cache.MANIFEST)
+    files = sorted(
+        f for f in Path(folder).iterdir() if not f.name.startswith(".") and f.name != cache.MANIFEST
+    )
     refuse_overwrite([source], [out_dir / f.name for f in files])
     for f in files:
         copy_file(f, out_dir / f.name)

@@ -17,8 +17,8 @@ outputs, in the same layout, as the job run in one process.
 - ``openjd_template`` writes the plan as an Open Job Description job template
   (specificationVersion jobtemplate-2023-09: https://github.com/OpenJobDescription/
   openjd-specifications/wiki/2023-09-Template-Schemas): job parameters defaulting to the
-  planned job (PATH ones relative to the template's folder, as the spec requires), a Render step whose STRING task parameter is the task id, and a Report step
-  depending on it.
+  planned job (PATH ones relative to the template's folder, as the spec requires), a Render
+  step whose STRING task parameter is the task id, and a Report step depending on it.
 
 Pure Python: no bpy (the jobs layer, jobs/graph.py, fills in what a task renders).
 """
@@ -48,6 +48,7 @@ OPENJD_SPEC = "jobtemplate-2023-09"
 # ----------------------------------------------------------------------------------------
 # Ids and hashes
 
+
 def canonical(data) -> str:
     return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
 
@@ -70,27 +71,41 @@ def file_digest(path: Path) -> str:
 def render_task(folder: str, content: dict, outputs: tuple) -> dict:
     """A render task writing ``outputs`` (file names) into JOB/<folder>/."""
     tid = content_id(folder, content)
-    return {"id": tid, "kind": "render", "folder": folder,
-            "command": ["ctlab", "task", "{job}", tid],
-            "inputs": content.get("inputs", {}),
-            "outputs": [f"{folder}/{name}" for name in outputs], "depends": [],
-            "content": content}
+    return {
+        "id": tid,
+        "kind": "render",
+        "folder": folder,
+        "command": ["ctlab", "task", "{job}", tid],
+        "inputs": content.get("inputs", {}),
+        "outputs": [f"{folder}/{name}" for name in outputs],
+        "depends": [],
+        "content": content,
+    }
 
 
 def merge_task(job: str, renders: list, outputs: tuple) -> dict:
     ids = [t["id"] for t in renders]
-    return {"id": content_id(f"merge_{job}", {"depends": ids}), "kind": "merge",
-            "command": ["ctlab", "merge", "{job}"], "inputs": {},
-            "outputs": list(outputs), "depends": ids}
+    return {
+        "id": content_id(f"merge_{job}", {"depends": ids}),
+        "kind": "merge",
+        "command": ["ctlab", "merge", "{job}"],
+        "inputs": {},
+        "outputs": list(outputs),
+        "depends": ids,
+    }
 
 
-def make_plan(job: str, spec: dict, environment: dict, renders: list,
-              merge_outputs: tuple) -> dict:
+def make_plan(job: str, spec: dict, environment: dict, renders: list, merge_outputs: tuple) -> dict:
     """``spec``: what the jobs layer needs to rebuild the tasks (the base settings, samples,
     the job's own choices); ``environment``: the versions every task id includes."""
-    return {"format": FORMAT, "version": PLAN_VERSION, "job": job, "spec": spec,
-            "environment": environment,
-            "tasks": renders + [merge_task(job, renders, merge_outputs)]}
+    return {
+        "format": FORMAT,
+        "version": PLAN_VERSION,
+        "job": job,
+        "spec": spec,
+        "environment": environment,
+        "tasks": renders + [merge_task(job, renders, merge_outputs)],
+    }
 
 
 def render_tasks(plan: dict) -> list:
@@ -101,8 +116,9 @@ def find_task(plan: dict, task_id: str) -> dict:
     for t in plan["tasks"]:
         if t["id"] == task_id:
             return t
-    raise UserError(f"no task {task_id!r} in this plan; its tasks: "
-                    + ", ".join(t["id"] for t in plan["tasks"]))
+    raise UserError(
+        f"no task {task_id!r} in this plan; its tasks: " + ", ".join(t["id"] for t in plan["tasks"])
+    )
 
 
 def order(plan: dict) -> list:
@@ -122,6 +138,7 @@ def order(plan: dict) -> list:
 # ----------------------------------------------------------------------------------------
 # The plan file
 
+
 def plan_path(job_dir: Path) -> Path:
     return Path(job_dir) / PLAN_FILE
 
@@ -132,18 +149,23 @@ def read_plan(job_dir: Path) -> dict:
     try:
         plan = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise UserError(f"{job_dir} holds no {PLAN_FILE}; write one with 'ctlab plan matrix "
-                        f"--out {job_dir}'") from None
+        raise UserError(
+            f"{job_dir} holds no {PLAN_FILE}; write one with 'ctlab plan matrix --out {job_dir}'"
+        ) from None
     except (OSError, ValueError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path} is not a readable plan ({exc}); plan the job again into an "
-                        "empty folder") from None
+        raise UserError(
+            f"{path} is not a readable plan ({exc}); plan the job again into an empty folder"
+        ) from None
     if not isinstance(plan, dict) or plan.get("format") != FORMAT:
         raise UserError(f"{path} is not a ctlab plan")
     if plan.get("version") != PLAN_VERSION:
-        raise UserError(f"{path} is plan version {plan.get('version')}; this ctlab reads "
-                        f"version {PLAN_VERSION}: plan the job again")
+        raise UserError(
+            f"{path} is plan version {plan.get('version')}; this ctlab reads "
+            f"version {PLAN_VERSION}: plan the job again"
+        )
     if not isinstance(plan.get("tasks"), list) or not all(
-            isinstance(t, dict) and {"id", "kind", "depends"} <= set(t) for t in plan["tasks"]):
+        isinstance(t, dict) and {"id", "kind", "depends"} <= set(t) for t in plan["tasks"]
+    ):
         raise UserError(f"{path} has malformed tasks; plan the job again")
     return plan
 
@@ -158,8 +180,10 @@ def write_plan(job_dir: Path, plan: dict) -> Path:
         except UserError:
             old = None
         if old is None or [t["id"] for t in old["tasks"]] != [t["id"] for t in plan["tasks"]]:
-            raise UserError(f"{job_dir} already holds a plan of other settings or another "
-                            "version; choose another --out (nothing was overwritten)")
+            raise UserError(
+                f"{job_dir} already holds a plan of other settings or another "
+                "version; choose another --out (nothing was overwritten)"
+            )
         return path
     write_json(path, plan)
     return path
@@ -168,21 +192,33 @@ def write_plan(job_dir: Path, plan: dict) -> Path:
 # ----------------------------------------------------------------------------------------
 # Completion markers
 
+
 def marker_path(job_dir: Path, task: dict) -> Path:
     return Path(job_dir) / TASKS_DIR / (task["folder"].replace("/", "__") + ".json")
 
 
 def output_manifest(job_dir: Path, task: dict) -> dict:
-    return {rel: {"bytes": (Path(job_dir) / rel).stat().st_size,
-                  "sha256": file_digest(Path(job_dir) / rel)} for rel in task["outputs"]}
+    return {
+        rel: {
+            "bytes": (Path(job_dir) / rel).stat().st_size,
+            "sha256": file_digest(Path(job_dir) / rel),
+        }
+        for rel in task["outputs"]
+    }
 
 
 def mark_done(job_dir: Path, task: dict, info: dict | None = None) -> None:
     """After the task's outputs are whole: its marker, written atomically."""
     (Path(job_dir) / TASKS_DIR).mkdir(exist_ok=True)
-    write_json(marker_path(job_dir, task), {"id": task["id"], "version": PLAN_VERSION,
-                                            "outputs": output_manifest(job_dir, task),
-                                            "info": info or {}})
+    write_json(
+        marker_path(job_dir, task),
+        {
+            "id": task["id"],
+            "version": PLAN_VERSION,
+            "outputs": output_manifest(job_dir, task),
+            "info": info or {},
+        },
+    )
 
 
 def problem(job_dir: Path, task: dict) -> str | None:
@@ -194,8 +230,10 @@ def problem(job_dir: Path, task: dict) -> str | None:
     except (OSError, ValueError, UnicodeDecodeError):
         return "has a corrupt completion marker"
     if not isinstance(marker, dict) or marker.get("id") != task["id"]:
-        return (f"holds the output of another version or other settings "
-                f"({marker.get('id') if isinstance(marker, dict) else '?'})")
+        return (
+            f"holds the output of another version or other settings "
+            f"({marker.get('id') if isinstance(marker, dict) else '?'})"
+        )
     recorded = marker.get("outputs") or {}
     for rel in task["outputs"]:
         path = Path(job_dir) / rel
@@ -215,14 +253,17 @@ def check_complete(job_dir: Path, plan: dict, python_cmd: str = "ctlab") -> None
     """Every render task done, or one UserError line naming each task to re-run and why."""
     bad = [(t, why) for t in render_tasks(plan) if (why := problem(job_dir, t))]
     if bad:
-        raise UserError(f"{job_dir} is not ready to merge: "
-                        + "; ".join(f"task {t['id']} ({t['folder']}) {why}" for t, why in bad)
-                        + ". Re-run: " + "; ".join(f"{python_cmd} task {job_dir} {t['id']}"
-                                                   for t, _ in bad))
+        raise UserError(
+            f"{job_dir} is not ready to merge: "
+            + "; ".join(f"task {t['id']} ({t['folder']}) {why}" for t, why in bad)
+            + ". Re-run: "
+            + "; ".join(f"{python_cmd} task {job_dir} {t['id']}" for t, _ in bad)
+        )
 
 
 # ----------------------------------------------------------------------------------------
 # One merge at a time
+
 
 @contextlib.contextmanager
 def merge_lock(job_dir: Path):
@@ -246,8 +287,10 @@ def merge_lock(job_dir: Path):
                 with contextlib.suppress(OSError):
                     path.unlink()
                 continue
-            raise UserError(f"another merge of {job_dir} is running (process {pid} on "
-                            f"{host}); wait for it, or remove {path} if it is gone") from None
+            raise UserError(
+                f"another merge of {job_dir} is running (process {pid} on "
+                f"{host}); wait for it, or remove {path} if it is gone"
+            ) from None
     else:
         raise UserError(f"could not take the merge lock {path}; remove it and merge again")
     try:
@@ -272,6 +315,7 @@ def _alive(pid: int) -> bool:
 # ----------------------------------------------------------------------------------------
 # Open Job Description
 
+
 def openjd_template(plan: dict) -> dict:
     """The plan as an Open Job Description job template (jobtemplate-2023-09) for
     JOB/openjd/template.json. The spec joins a PATH parameter's default to the template's
@@ -284,28 +328,56 @@ def openjd_template(plan: dict) -> dict:
     job = "{{Param.BundleDir}}/.."
 
     def action(*args):
-        return {"actions": {"onRun": {"command": "{{Param.Python}}",
-                                      "args": ["{{Param.RepoRoot}}/scripts/ctlab.py",
-                                               *args]}}}
+        return {
+            "actions": {
+                "onRun": {
+                    "command": "{{Param.Python}}",
+                    "args": ["{{Param.RepoRoot}}/scripts/ctlab.py", *args],
+                }
+            }
+        }
+
     return {
         "specificationVersion": OPENJD_SPEC,
         "name": f"ctlab {plan['job']}",
         "parameterDefinitions": [
-            {"name": "BundleDir", "type": "PATH", "objectType": "DIRECTORY", "default": ".",
-             "description": "this bundle, JOB/openjd: the job folder (plan.json) is its "
-                            "parent"},
-            {"name": "RepoRoot", "type": "PATH", "objectType": "DIRECTORY", "default": "ctlab",
-             "description": "Cook-Torrance Lab's folder (scripts/ctlab.py)"},
-            {"name": "Python", "type": "STRING", "minLength": 1,
-             "default": plan.get("python", "python3"),
-             "description": "a Python with bpy (Blender as a module)"}],
+            {
+                "name": "BundleDir",
+                "type": "PATH",
+                "objectType": "DIRECTORY",
+                "default": ".",
+                "description": "this bundle, JOB/openjd: the job folder (plan.json) is its parent",
+            },
+            {
+                "name": "RepoRoot",
+                "type": "PATH",
+                "objectType": "DIRECTORY",
+                "default": "ctlab",
+                "description": "Cook-Torrance Lab's folder (scripts/ctlab.py)",
+            },
+            {
+                "name": "Python",
+                "type": "STRING",
+                "minLength": 1,
+                "default": plan.get("python", "python3"),
+                "description": "a Python with bpy (Blender as a module)",
+            },
+        ],
         "steps": [
-            {"name": "Render",
-             "parameterSpace": {"taskParameterDefinitions": [
-                 {"name": "TaskId", "type": "STRING", "range": ids}]},
-             "script": action("task", job, "{{Task.Param.TaskId}}")},
-            {"name": "Report", "dependencies": [{"dependsOn": "Render"}],
-             "script": action("merge", job)}]}
+            {
+                "name": "Render",
+                "parameterSpace": {
+                    "taskParameterDefinitions": [{"name": "TaskId", "type": "STRING", "range": ids}]
+                },
+                "script": action("task", job, "{{Task.Param.TaskId}}"),
+            },
+            {
+                "name": "Report",
+                "dependencies": [{"dependsOn": "Render"}],
+                "script": action("merge", job),
+            },
+        ],
+    }
 
 
 def write_openjd(job_dir: Path, plan: dict, repo_root: Path, python: str) -> Path:
@@ -336,17 +408,23 @@ def flamenco_job_type(plan: dict, job_dir: Path, repo_root: Path, python: str) -
     task ids are the plan's: Flamenco scripts cannot read plan.json themselves."""
     ids = [t["id"] for t in render_tasks(plan)]
     digest = hashlib.sha256(canonical(ids).encode()).hexdigest()[:8]
-    setting = ('    {{ key: "{key}", type: "string", {sub}required: true, '
-               'default: {default}, description: {desc} }},')
-    settings = "\n".join(setting.format(key=k, sub=sub, default=json.dumps(str(v)),
-                                        desc=json.dumps(d))
-                         for k, sub, v, d in (
-                             ("job_dir", 'subtype: "dir_path", ', job_dir,
-                              "the job folder (plan.json)"),
-                             ("repo_root", 'subtype: "dir_path", ', repo_root,
-                              "Cook-Torrance Lab's folder (scripts/ctlab.py)"),
-                             ("python", 'subtype: "file_path", ', python,
-                              "a Python with bpy (Blender as a module)")))
+    setting = (
+        '    {{ key: "{key}", type: "string", {sub}required: true, '
+        'default: {default}, description: {desc} }},'
+    )
+    settings = "\n".join(
+        setting.format(key=k, sub=sub, default=json.dumps(str(v)), desc=json.dumps(d))
+        for k, sub, v, d in (
+            ("job_dir", 'subtype: "dir_path", ', job_dir, "the job folder (plan.json)"),
+            (
+                "repo_root",
+                'subtype: "dir_path", ',
+                repo_root,
+                "Cook-Torrance Lab's folder (scripts/ctlab.py)",
+            ),
+            ("python", 'subtype: "file_path", ', python, "a Python with bpy (Blender as a module)"),
+        )
+    )
     return f"""// Flamenco job type for one planned Cook-Torrance Lab job, written by
 // `ctlab plan {plan['job']} --flamenco` (addon/core/jobgraph.py). Put it in the Manager's
 // scripts/ folder; the task ids below are the plan's.
@@ -388,5 +466,6 @@ def write_flamenco(job_dir: Path, plan: dict, repo_root: Path, python: str) -> P
     folder.mkdir(exist_ok=True)
     path = folder / f"ctlab-{plan['job']}.js"
     from .files import write_text
+
     write_text(path, flamenco_job_type(plan, Path(job_dir).absolute(), repo_root, python))
     return path

@@ -24,8 +24,17 @@ DESCRIPTION = NODE_GROUPS_DIR / "cook_torrance.toml"
 CLOSURE_OPS = ("gated", "prefiltered")
 VECTOR_VALUE_OPS = {"DOT_PRODUCT", "LENGTH", "DISTANCE"}
 # What the description's [scene] table must hold (the scene transport)
-SCENE_KEYS = ("label", "on", "multi_ggx", "specular", "diffuse", "correct",
-              "correction_lights", "correction_world", "residual")
+SCENE_KEYS = (
+    "label",
+    "on",
+    "multi_ggx",
+    "specular",
+    "diffuse",
+    "correct",
+    "correction_lights",
+    "correction_world",
+    "residual",
+)
 
 
 def load_description(path: Path = DESCRIPTION) -> dict:
@@ -34,23 +43,31 @@ def load_description(path: Path = DESCRIPTION) -> dict:
     if list(data["views"]) != list(VIEWS):
         raise UserError(f"{path}: the views must be, in order: {', '.join(VIEWS)}")
     if data["lights"]["slots"] != LIGHT_SLOTS:
-        raise UserError(f"{path}: it is written for {data['lights']['slots']} light slots; the "
-                        f"model has {LIGHT_SLOTS}")
+        raise UserError(
+            f"{path}: it is written for {data['lights']['slots']} light slots; the "
+            f"model has {LIGHT_SLOTS}"
+        )
     if not set(SCENE_KEYS) <= set(data.get("scene", {})):
-        raise UserError(f"{path}: its [scene] table needs label, on, multi_ggx, specular.*, "
-                        "diffuse.*, correct, correction_lights, correction_world and "
-                        "residual (the scene transport's closures, its correction and its "
-                        "residual albedo)")
+        raise UserError(
+            f"{path}: its [scene] table needs label, on, multi_ggx, specular.*, "
+            "diffuse.*, correct, correction_lights, correction_world and "
+            "residual (the scene transport's closures, its correction and its "
+            "residual albedo)"
+        )
     if data["group"]["dfg_size"] != DFG_SIZE:
-        raise UserError(f"{path}: its DFG lookups are written for {data['group']['dfg_size']}"
-                        f"-texel tables; ibl_bake makes {DFG_SIZE}")
+        raise UserError(
+            f"{path}: its DFG lookups are written for {data['group']['dfg_size']}"
+            f"-texel tables; ibl_bake makes {DFG_SIZE}"
+        )
     return data
 
 
 # --- Parsing -----------------------------------------------------------------------------
 
-_TOKEN = re.compile(r"\s*(?:(?P<num>-?\d+\.?\d*(?:[eE][-+]?\d+)?)|(?P<name>[A-Za-z_][\w. !]*?)"
-                    r"(?=\s*[(),]|\s*$)|(?P<sym>[(),]))")
+_TOKEN = re.compile(
+    r"\s*(?:(?P<num>-?\d+\.?\d*(?:[eE][-+]?\d+)?)|(?P<name>[A-Za-z_][\w. !]*?)"
+    r"(?=\s*[(),]|\s*$)|(?P<sym>[(),]))"
+)
 
 
 def parse(text: str):
@@ -87,8 +104,9 @@ def parse(text: str):
                 if at(i) == ("sym", ","):
                     i += 1
                 elif at(i) != ("sym", ")"):
-                    raise UserError(f"node description: expected ',' or ')' after an "
-                                    f"argument in {text!r}")
+                    raise UserError(
+                        f"node description: expected ',' or ')' after an argument in {text!r}"
+                    )
             return ("call", value, args), i + 1
         return ("ref", value), i + 1
 
@@ -109,10 +127,10 @@ def parse(text: str):
 # the nodes already in the tree).
 
 
-
 def _per_light_names(data: dict) -> set:
-    return {name for spec in data["frames"].values() if spec.get("per_light")
-            for name in spec["nodes"]}
+    return {
+        name for spec in data["frames"].values() if spec.get("per_light") for name in spec["nodes"]
+    }
 
 
 def _refs(tree, found: set) -> set:
@@ -165,8 +183,7 @@ def _kind(tree, exprs: dict, inputs: dict) -> str:
 
 
 def _input_kinds() -> dict:
-    return {i.group: ("FLOAT" if i.kind in ("FLOAT", "INT") else "VECTOR")
-            for i in GROUP_INPUTS}
+    return {i.group: ("FLOAT" if i.kind in ("FLOAT", "INT") else "VECTOR") for i in GROUP_INPUTS}
 
 
 class LightPlan:
@@ -183,19 +200,29 @@ class LightPlan:
         for frame, spec in data["frames"].items():
             for name, text in spec["nodes"].items():
                 tree = _all_lights(parse(text), per_light, self.slots)
-                (sub if spec.get("per_light") else correction if spec.get("correction_group")
-                 else main)[name] = (frame, tree)
-        self.views = {view: _all_lights(parse(text), per_light, self.slots)
-                      for view, text in data["views"].items()}
+                (
+                    sub
+                    if spec.get("per_light")
+                    else correction
+                    if spec.get("correction_group")
+                    else main
+                )[name] = (frame, tree)
+        self.views = {
+            view: _all_lights(parse(text), per_light, self.slots)
+            for view, text in data["views"].items()
+        }
         # the scene transport's expressions (the description's [scene])
-        self.scene = {key: _all_lights(parse(data["scene"][key]), per_light, self.slots)
-                      for key in SCENE_EXPRESSIONS}
+        self.scene = {
+            key: _all_lights(parse(data["scene"][key]), per_light, self.slots)
+            for key in SCENE_EXPRESSIONS
+        }
         used_outside = set()
-        for tree in [t for _, t in main.values()] + list(self.views.values()) + \
-                list(self.scene.values()):
+        for tree in (
+            [t for _, t in main.values()] + list(self.views.values()) + list(self.scene.values())
+        ):
             used_outside |= _refs(tree, set())
         globals_used = []
-        self.exprs = {}                    # the per-light group's nodes
+        self.exprs = {}  # the per-light group's nodes
         for name, (frame, tree) in sub.items():
             for ref in _refs(tree, set()):
                 if ref.startswith("light."):
@@ -207,10 +234,11 @@ class LightPlan:
         kinds = _input_kinds()
         field_kinds = {f: kinds[f"Light 1 {f}"] for f in self.fields}
         self.globals = globals_used
-        self.inputs = [(f, field_kinds[f]) for f in self.fields] + \
-            [(g, _kind(main[g][1], main, kinds)) for g in globals_used]
+        self.inputs = [(f, field_kinds[f]) for f in self.fields] + [
+            (g, _kind(main[g][1], main, kinds)) for g in globals_used
+        ]
         self.outputs = []
-        self.closures = {}                 # per-light closure term -> (op, argument count)
+        self.closures = {}  # per-light closure term -> (op, argument count)
         sub_kinds = dict(self.inputs)
         for name in sub:
             if name not in used_outside:
@@ -225,7 +253,8 @@ class LightPlan:
                 self.outputs.append((name, _kind(tree, self.exprs, sub_kinds)))
         self.main = main
         self.correction = SubgroupPlan(
-            correction, {key: self.scene[key] for key in CORRECTION_OUTPUTS}, main, kinds)
+            correction, {key: self.scene[key] for key in CORRECTION_OUTPUTS}, main, kinds
+        )
 
     def _localise(self, tree, main):
         """A per-light expression inside the per-light group: the light's fields and the other
@@ -248,8 +277,10 @@ class LightPlan:
                 if "." not in name:
                     exprs[name + suffix] = ("lights", ("light", suffix, name))
             for name, (op, count) in self.closures.items():
-                exprs[name + suffix] = ("lights", ("call", op, [
-                    ("light", suffix, f"{name}.{k}") for k in range(count)]))
+                exprs[name + suffix] = (
+                    "lights",
+                    ("call", op, [("light", suffix, f"{name}.{k}") for k in range(count)]),
+                )
         return exprs
 
 
@@ -264,8 +295,10 @@ class LightPlan:
 # [scene] expressions: the Mix Shader's factor, the lights' terms (main group), the world's
 # terms and the residual (the correction group's outputs)
 SCENE_EXPRESSIONS = ("correct", "correction_lights", "correction_world", "residual")
-CORRECTION_OUTPUTS = {"correction_world": ("Correction", "SHADER"),
-                      "residual": ("Residual Albedo", "RGBA")}
+CORRECTION_OUTPUTS = {
+    "correction_world": ("Correction", "SHADER"),
+    "residual": ("Residual Albedo", "RGBA"),
+}
 
 
 class SubgroupPlan:
@@ -288,15 +321,18 @@ class SubgroupPlan:
                 elif name in main:
                     kind = _kind(main[name][1], main, kinds)
                 else:
-                    raise UserError(f"node description: the correction group cannot use "
-                                    f"{name!r} (a per-light node)")
+                    raise UserError(
+                        f"node description: the correction group cannot use "
+                        f"{name!r} (a per-light node)"
+                    )
                 if label not in seen:
                     seen.add(label)
                     self.inputs.append((label, kind, tree))
                 return ("ref", "in." + label)
             if tree[0] == "call":
-                files = 1 if tree[1] in ("env", "table") else 0    # a baked file's name
+                files = 1 if tree[1] in ("env", "table") else 0  # a baked file's name
                 return ("call", tree[1], tree[2][:files] + [localise(a) for a in tree[2][files:]])
             return tree
+
         self.exprs = {name: (frame, localise(tree)) for name, (frame, tree) in exprs.items()}
         self.roots = {key: localise(tree) for key, tree in roots.items()}

@@ -40,4 +40,5 @@ def source(path: Path = SHADER_FILE, _depth: int = 0) -> str:
             if (folder / m[1]).is_file():
                 return source(folder / m[1], _depth + 1)
         return m[0]
+
     return _LOCAL_INCLUDE.sub(inline, path.read_text(encoding="utf-8"))

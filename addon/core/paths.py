@@ -8,9 +8,9 @@ the HDRI, the lights file, the .blend, the compared folders' files, --out and th
 - Byte limits: a name of at most 255 bytes (NAME_MAX of Linux and macOS file systems) and a
   whole path below Blender's FILE_MAX (1024 bytes with the NUL; ``BLI_path_utils.hh``), past
   which its image writer truncates a path silently and writes elsewhere (measured on bpy
-  5.2.3: ``Image.save_render`` to a path of 1030 bytes wrote the file at its first 1023). An output folder
-  keeps ``OUTPUT_RESERVE`` bytes for the longest name a job writes below it (a staging name
-  of a matrix sub-folder's file, ``core.files.staging_name``). Checked before any work.
+  5.2.3: ``Image.save_render`` to a path of 1030 bytes wrote the file at its first 1023). An
+  output folder keeps ``OUTPUT_RESERVE`` bytes for the longest name a job writes below it (a
+  staging name of a matrix sub-folder's file, ``core.files.staging_name``). Checked before any work.
 - An input is a regular file: stat first, then opened with O_NONBLOCK, so a named pipe or a
   device is refused and never blocks (open(2): "O_NONBLOCK ... for a FIFO, open returns
   immediately").
@@ -30,12 +30,17 @@ from pathlib import Path
 from .errors import UserError
 
 MAX_NAME_BYTES = 255
-FILE_MAX = 1024                      # Blender's path buffer, NUL included
-MAX_PATH_BYTES = 1000                # a margin below FILE_MAX for every path handed over
-OUTPUT_RESERVE = 160                 # below --out: "compare_split_sum_corrected/.render.…"
+FILE_MAX = 1024  # Blender's path buffer, NUL included
+MAX_PATH_BYTES = 1000  # a margin below FILE_MAX for every path handed over
+OUTPUT_RESERVE = 160  # below --out: "compare_split_sum_corrected/.render.…"
 
-_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
-          (stat.S_ISCHR, "a device"), (stat.S_ISBLK, "a device"), (stat.S_ISSOCK, "a socket"))
+_KINDS = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISFIFO, "a named pipe (FIFO)"),
+    (stat.S_ISCHR, "a device"),
+    (stat.S_ISBLK, "a device"),
+    (stat.S_ISSOCK, "a socket"),
+)
 
 
 def _short(text: str) -> str:
@@ -51,33 +56,42 @@ def clean(text, what: str, output: bool = False) -> Path:
     if "\0" in text:
         raise UserError(f"{what} holds a NUL character: {_short(text)!r}")
     if text.startswith("//"):
-        raise UserError(f"{what} {_short(text)!r} starts with '//', which Blender reads as "
-                        "relative to the open .blend file; give a plain path")
+        raise UserError(
+            f"{what} {_short(text)!r} starts with '//', which Blender reads as "
+            "relative to the open .blend file; give a plain path"
+        )
     if "\\" in text:
-        raise UserError(f"{what} {_short(text)!r} holds a backslash, which Blender reads as a "
-                        "folder separator; rename it or give another path")
+        raise UserError(
+            f"{what} {_short(text)!r} holds a backslash, which Blender reads as a "
+            "folder separator; rename it or give another path"
+        )
     try:
         encoded = os.fsencode(text)
     except UnicodeError:
-        raise UserError(f"{what} {_short(text)!r} cannot be encoded for this file "
-                        "system") from None
+        raise UserError(f"{what} {_short(text)!r} cannot be encoded for this file system") from None
     if any(len(part) > MAX_NAME_BYTES for part in encoded.split(b"/")):
-        raise UserError(f"{what} is longer than this system allows: a name of over "
-                        f"{MAX_NAME_BYTES} bytes in {_short(text)}")
+        raise UserError(
+            f"{what} is longer than this system allows: a name of over "
+            f"{MAX_NAME_BYTES} bytes in {_short(text)}"
+        )
     path = os.path.abspath(text)
     limit = MAX_PATH_BYTES - (OUTPUT_RESERVE if output else 0)
     if len(os.fsencode(path)) > limit:
-        raise UserError(f"{what} is longer than this system allows: {len(os.fsencode(path))} "
-                        f"bytes over {limit} (Blender writes paths of at most {FILE_MAX - 1}"
-                        f"{' with the names ctlab writes below it' if output else ''}): "
-                        f"{_short(path)}")
+        raise UserError(
+            f"{what} is longer than this system allows: {len(os.fsencode(path))} "
+            f"bytes over {limit} (Blender writes paths of at most {FILE_MAX - 1}"
+            f"{' with the names ctlab writes below it' if output else ''}): "
+            f"{_short(path)}"
+        )
     return Path(path)
 
 
 def kind(mode: int) -> str | None:
     """What a file of this mode is when it is not a regular file (None for one)."""
-    return next((name for test, name in _KINDS if test(mode)), None if stat.S_ISREG(mode)
-                else "not a regular file")
+    return next(
+        (name for test, name in _KINDS if test(mode)),
+        None if stat.S_ISREG(mode) else "not a regular file",
+    )
 
 
 def input_file(text, what: str, missing: str | None = None) -> Path:
@@ -97,7 +111,7 @@ def input_file(text, what: str, missing: str | None = None) -> Path:
     except OSError as exc:
         raise UserError(f"{what} {path} cannot be read ({exc.strerror or exc})") from None
     try:
-        if kind(os.fstat(fd).st_mode):           # replaced between the stat and the open
+        if kind(os.fstat(fd).st_mode):  # replaced between the stat and the open
             raise UserError(f"{what} {path} is not a regular file; give a file")
     finally:
         os.close(fd)
@@ -149,30 +163,40 @@ def check_job(inputs=(), outputs=(), folders=(), cache=None) -> None:
         except OSError:
             continue
         if not stat.S_ISLNK(mode) and kind(mode):
-            raise UserError(f"{out} is {kind(mode)} where this job writes a file; move it "
-                            "away or choose another --out")
+            raise UserError(
+                f"{out} is {kind(mode)} where this job writes a file; move it "
+                "away or choose another --out"
+            )
     for inp in inputs:
         ri = _real(inp)
         for out in outputs:
             ro = _real(out)
             if ri == ro or _same(inp, out):
-                raise UserError(f"{out} is an input of this job ({inp}); writing there would "
-                                "destroy it; choose another --out")
+                raise UserError(
+                    f"{out} is an input of this job ({inp}); writing there would "
+                    "destroy it; choose another --out"
+                )
             if _at_or_under(ri, ro) or _at_or_under(ro, ri):
-                where = f"inside {out}, which this job writes" if _at_or_under(ri, ro) \
+                where = (
+                    f"inside {out}, which this job writes"
+                    if _at_or_under(ri, ro)
                     else f"and this job writes {out} inside it"
-                raise UserError(f"{inp} is an input of this job {where}; choose another "
-                                "--out")
+                )
+                raise UserError(f"{inp} is an input of this job {where}; choose another --out")
     if cache is not None:
         rc = _real(cache)
         for folder in [*folders, *outputs]:
             if _at_or_under(_real(folder), rc):
-                raise UserError(f"{folder} is inside the cache folder {cache}, whose entries "
-                                "ctlab rebuilds and removes; choose another --out")
+                raise UserError(
+                    f"{folder} is inside the cache folder {cache}, whose entries "
+                    "ctlab rebuilds and removes; choose another --out"
+                )
         for out in outputs:
             if _at_or_under(rc, _real(out)):
-                raise UserError(f"the cache folder {cache} is where this job writes {out}; "
-                                "choose another --out or set CTLAB_CACHE")
+                raise UserError(
+                    f"the cache folder {cache} is where this job writes {out}; "
+                    "choose another --out or set CTLAB_CACHE"
+                )
 
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+", re.ASCII)
@@ -186,8 +210,9 @@ def safe_name(text: str, default: str = "run", limit: int = 64) -> str:
 
 
 _INT = re.compile(r"[+-]?[0-9]+", re.ASCII)
-_FLOAT = re.compile(r"[+-]?(inf|infinity|nan|([0-9]+\.?[0-9]*|\.[0-9]+)(e[+-]?[0-9]+)?)",
-                    re.ASCII | re.IGNORECASE)
+_FLOAT = re.compile(
+    r"[+-]?(inf|infinity|nan|([0-9]+\.?[0-9]*|\.[0-9]+)(e[+-]?[0-9]+)?)", re.ASCII | re.IGNORECASE
+)
 
 
 def ascii_int(text) -> int:
@@ -208,5 +233,5 @@ def ascii_float(text) -> float:
     return float(text)
 
 
-ascii_int.__name__ = "int"           # argparse: "invalid int value: '²'"
+ascii_int.__name__ = "int"  # argparse: "invalid int value: '²'"
 ascii_float.__name__ = "float"

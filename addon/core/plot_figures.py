@@ -34,6 +34,7 @@ def _units_note(settings) -> str:
 # ----------------------------------------------------------------------------------------
 # CSV
 
+
 def _csv(header: list, rows) -> str:
     out = io.StringIO()
     out.write(",".join(header) + "\n")
@@ -71,14 +72,17 @@ def lobe_csv(lobes: dict) -> str:
 # ----------------------------------------------------------------------------------------
 # The plot's files
 
+
 def _check_finite(results: dict) -> None:
     for tag, r in results.items():
         if tag == "labels":
             continue
         arrays = list(r["slice"].values()) + [r["lobe"]] + list(r["albedo"].values())
         if not all(np.isfinite(a).all() for a in arrays):
-            raise UserError("the model gave a NaN or infinite value for this plot "
-                            f"({results['labels'][tag]}); please report it")
+            raise UserError(
+                "the model gave a NaN or infinite value for this plot "
+                f"({results['labels'][tag]}); please report it"
+            )
 
 
 def plot_data(settings, results: dict, files: list) -> dict:
@@ -87,21 +91,32 @@ def plot_data(settings, results: dict, files: list) -> dict:
     base = results[""]
     return {
         "parameters": settings.describe(),
-        "slice": {"size": bp.SLICE_SIZE, "phi_d_deg": bp.SLICE_PHI_D,
-                  "column": "theta_h_deg = i + 0.5", "row": "theta_d_deg = j + 0.5 (row 0 "
-                  "at the top)", "theta_h_deg": th.tolist(), "theta_d_deg": td.tolist(),
-                  "value": "f_r = f_d + f_s (1/sr)" + _units_note(settings),
-                  "zero_where": "n.l <= 0 or n.v <= 0",
-                  "max": float(np.max(base["slice"]["f_r"]))},
-        "lobe": {"theta_v_deg": list(bp.LOBE_VIEW_ANGLES),
-                 "theta_l_deg": {"from": -90.0, "to": 90.0, "steps": bp.LOBE_STEPS},
-                 "value": "f_r (n.l) (1/sr) in the incidence plane; the mirror direction "
-                          "at theta_l = -theta_v" + _units_note(settings)},
-        "albedo": {"theta_v_deg": bp.albedo_angles().tolist(),
-                   "quadrature": {"grid": list(bp.ALBEDO_GRID),
-                                  "specular": "GGX half vectors, weight 4 (v.h) / (D (n.h))",
-                                  "diffuse": "cosine-distributed, weight pi / (n.l)"},
-                   "mean_total": float(np.mean(luminance(base["albedo"]["total"])))},
+        "slice": {
+            "size": bp.SLICE_SIZE,
+            "phi_d_deg": bp.SLICE_PHI_D,
+            "column": "theta_h_deg = i + 0.5",
+            "row": "theta_d_deg = j + 0.5 (row 0 at the top)",
+            "theta_h_deg": th.tolist(),
+            "theta_d_deg": td.tolist(),
+            "value": "f_r = f_d + f_s (1/sr)" + _units_note(settings),
+            "zero_where": "n.l <= 0 or n.v <= 0",
+            "max": float(np.max(base["slice"]["f_r"])),
+        },
+        "lobe": {
+            "theta_v_deg": list(bp.LOBE_VIEW_ANGLES),
+            "theta_l_deg": {"from": -90.0, "to": 90.0, "steps": bp.LOBE_STEPS},
+            "value": "f_r (n.l) (1/sr) in the incidence plane; the mirror direction "
+            "at theta_l = -theta_v" + _units_note(settings),
+        },
+        "albedo": {
+            "theta_v_deg": bp.albedo_angles().tolist(),
+            "quadrature": {
+                "grid": list(bp.ALBEDO_GRID),
+                "specular": "GGX half vectors, weight 4 (v.h) / (D (n.h))",
+                "diffuse": "cosine-distributed, weight pi / (n.l)",
+            },
+            "mean_total": float(np.mean(luminance(base["albedo"]["total"]))),
+        },
         "variants": [{"tag": tag, "label": label} for tag, label in results["labels"].items()],
         "files": files,
     }
@@ -111,12 +126,24 @@ def planned_names(settings) -> set:
     """The names of the files a plot with these settings writes, known before any render
     (so a folder standing where one goes is refused first; write_plot checks it agrees)."""
     tags = [tag for tag, _, _ in settings.variants() if tag]
-    slices = [slice_name()] + [slice_name(v) for v in settings.views] + \
-        [slice_name(tag=t) for t in tags]
-    return ({f"{n}.exr" for n in slices} | {f"{n}.png" for n in slices}
-            | {slice_name(tag=f"diff_{t}") + ".png" for t in tags}
-            | {"lobe.svg", "albedo.svg", "lobe.csv", "albedo.csv", "lobe.png", "albedo.png",
-               "plot.png", "plot.json"})
+    slices = (
+        [slice_name()] + [slice_name(v) for v in settings.views] + [slice_name(tag=t) for t in tags]
+    )
+    return (
+        {f"{n}.exr" for n in slices}
+        | {f"{n}.png" for n in slices}
+        | {slice_name(tag=f"diff_{t}") + ".png" for t in tags}
+        | {
+            "lobe.svg",
+            "albedo.svg",
+            "lobe.csv",
+            "albedo.csv",
+            "lobe.png",
+            "albedo.png",
+            "plot.png",
+            "plot.json",
+        }
+    )
 
 
 def refuse_blocked(out: Path, names) -> None:
@@ -124,12 +151,13 @@ def refuse_blocked(out: Path, names) -> None:
     out = Path(out)
     blocked = sorted(n for n in names if (out / n).exists() and not (out / n).is_file())
     if blocked:
-        raise UserError(f"{out} holds a folder named {blocked[0]}, where the plot writes a "
-                        "file; choose another --out")
+        raise UserError(
+            f"{out} holds a folder named {blocked[0]}, where the plot writes a "
+            "file; choose another --out"
+        )
 
 
-def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
-               warn=None) -> dict:
+def write_plot(out: Path, settings, results: dict, extra: dict | None = None, warn=None) -> dict:
     """Every file of the plot, written together (whole or not at all); returns plot.json's
     data (with ``extra``, e.g. the Blender version, under "renderer"). ``warn(message)``:
     an earlier plot's file that is left alone (not verifiably ctlab's)."""
@@ -142,10 +170,13 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
     exrs.update({slice_name(tag=tag): results[tag]["slice"]["f_r"] for tag in tags if tag})
     lobes = {tag: results[tag]["lobe"] for tag in tags}
     albedos = {tag: results[tag]["albedo"] for tag in tags}
-    title = (f"metallic {settings.metallic:.3g}, smoothness {settings.smoothness:.3g}"
-             + _units_note(settings))
-    texts = {f"{name}.svg": c.svg() for name, c in
-             figures.curve_figures(results, title, canvas=SvgCanvas).items()}
+    title = f"metallic {settings.metallic:.3g}, smoothness {settings.smoothness:.3g}" + _units_note(
+        settings
+    )
+    texts = {
+        f"{name}.svg": c.svg()
+        for name, c in figures.curve_figures(results, title, canvas=SvgCanvas).items()
+    }
     texts.update({"lobe.csv": lobe_csv(lobes), "albedo.csv": albedo_csv(albedos)})
     pngs = figures.figures(settings, results, title)
     names = [f"{n}.exr" for n in exrs] + list(texts) + list(pngs) + ["plot.json"]
@@ -155,7 +186,7 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
     paths = [out / n for n in names]
     refuse_blocked(out, names)
     earlier, unverified = _earlier_files(out, set(names))
-    with atomic_paths(*paths) as staged:      # renamed in order: plot.json, the index, last
+    with atomic_paths(*paths) as staged:  # renamed in order: plot.json, the index, last
         where = dict(zip(names, staged))
         for n, values in exrs.items():
             write_float_exr(where[f"{n}.exr"], values)
@@ -165,16 +196,19 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None,
             canvas.save_png(where[n])
         data["sha256"] = {n: _digest(where[n]) for n in names if n != "plot.json"}
         where["plot.json"].write_text(json_text(data), encoding="utf-8")
-    for name in earlier:                      # an earlier plot's variants and views
+    for name in earlier:  # an earlier plot's variants and views
         (out / name).unlink(missing_ok=True)
     if unverified and warn is not None:
-        warn(f"{len(unverified)} file(s) an earlier plot.json in {out} lists were left alone "
-             f"(not verifiably written by ctlab: {', '.join(sorted(unverified)[:3])})")
+        warn(
+            f"{len(unverified)} file(s) an earlier plot.json in {out} lists were left alone "
+            f"(not verifiably written by ctlab: {', '.join(sorted(unverified)[:3])})"
+        )
     return data
 
 
 def _digest(path: Path) -> str:
     import hashlib
+
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
@@ -190,6 +224,7 @@ def _earlier_files(out: Path, keep: set) -> tuple:
     import json
     import os
     import stat
+
     try:
         data = json.loads((out / "plot.json").read_text(encoding="utf-8"))
         files, hashes = data["files"], data.get("sha256", {})

@@ -19,6 +19,7 @@ from .hdri import oiio
 
 # --- The font ------------------------------------------------------------------------
 
+
 @functools.cache
 def _font() -> dict:
     """{size: (coverage atlas float32 0..1, {char: (x, y, w, h, left, top, advance)})}."""
@@ -34,8 +35,10 @@ def _font() -> dict:
     finally:
         inp.close()
     atlas = np.asarray(pixels, np.float32).reshape(spec.height, spec.width) / 255.0
-    return {int(s): (atlas, {c: tuple(g) for c, g in m["glyphs"].items()})
-            for s, m in meta["sizes"].items()}
+    return {
+        int(s): (atlas, {c: tuple(g) for c, g in m["glyphs"].items()})
+        for s, m in meta["sizes"].items()
+    }
 
 
 def font_sizes() -> tuple:
@@ -57,21 +60,63 @@ def _glyph(table: dict, c: str) -> tuple:
 
 # viridis (van der Walt and Smith, CC0; matplotlib's 256-entry table) at t = 0, 1/32, ..., 1;
 # linear interpolation between these stays within 0.007 of the table.
-_VIRIDIS = np.array([
-    (0.267, 0.005, 0.329), (0.277, 0.050, 0.376), (0.282, 0.095, 0.417), (0.283, 0.135, 0.453),
-    (0.279, 0.175, 0.483), (0.271, 0.213, 0.507), (0.259, 0.251, 0.524), (0.245, 0.287, 0.537),
-    (0.230, 0.321, 0.545), (0.215, 0.354, 0.551), (0.200, 0.386, 0.555), (0.186, 0.417, 0.557),
-    (0.173, 0.447, 0.558), (0.161, 0.477, 0.558), (0.150, 0.506, 0.557), (0.138, 0.536, 0.555),
-    (0.128, 0.565, 0.551), (0.121, 0.594, 0.544), (0.120, 0.624, 0.534), (0.131, 0.653, 0.521),
-    (0.155, 0.682, 0.503), (0.193, 0.710, 0.481), (0.241, 0.737, 0.455), (0.299, 0.762, 0.423),
-    (0.363, 0.787, 0.387), (0.433, 0.809, 0.345), (0.508, 0.829, 0.299), (0.587, 0.847, 0.249),
-    (0.669, 0.862, 0.195), (0.753, 0.875, 0.143), (0.836, 0.886, 0.102), (0.917, 0.896, 0.101),
-    (0.993, 0.906, 0.144)])
+_VIRIDIS = np.array(
+    [
+        (0.267, 0.005, 0.329),
+        (0.277, 0.050, 0.376),
+        (0.282, 0.095, 0.417),
+        (0.283, 0.135, 0.453),
+        (0.279, 0.175, 0.483),
+        (0.271, 0.213, 0.507),
+        (0.259, 0.251, 0.524),
+        (0.245, 0.287, 0.537),
+        (0.230, 0.321, 0.545),
+        (0.215, 0.354, 0.551),
+        (0.200, 0.386, 0.555),
+        (0.186, 0.417, 0.557),
+        (0.173, 0.447, 0.558),
+        (0.161, 0.477, 0.558),
+        (0.150, 0.506, 0.557),
+        (0.138, 0.536, 0.555),
+        (0.128, 0.565, 0.551),
+        (0.121, 0.594, 0.544),
+        (0.120, 0.624, 0.534),
+        (0.131, 0.653, 0.521),
+        (0.155, 0.682, 0.503),
+        (0.193, 0.710, 0.481),
+        (0.241, 0.737, 0.455),
+        (0.299, 0.762, 0.423),
+        (0.363, 0.787, 0.387),
+        (0.433, 0.809, 0.345),
+        (0.508, 0.829, 0.299),
+        (0.587, 0.847, 0.249),
+        (0.669, 0.862, 0.195),
+        (0.753, 0.875, 0.143),
+        (0.836, 0.886, 0.102),
+        (0.917, 0.896, 0.101),
+        (0.993, 0.906, 0.144),
+    ]
+)
 
 # ColorBrewer RdBu (11 classes, Cynthia Brewer, Apache-2.0), from blue at -1 to red at +1
-_RDBU = np.array([[int(h[i:i + 2], 16) / 255.0 for i in (0, 2, 4)] for h in (
-    "053061", "2166ac", "4393c3", "92c5de", "d1e5f0", "f7f7f7",
-    "fddbc7", "f4a582", "d6604d", "b2182b", "67001f")])
+_RDBU = np.array(
+    [
+        [int(h[i : i + 2], 16) / 255.0 for i in (0, 2, 4)]
+        for h in (
+            "053061",
+            "2166ac",
+            "4393c3",
+            "92c5de",
+            "d1e5f0",
+            "f7f7f7",
+            "fddbc7",
+            "f4a582",
+            "d6604d",
+            "b2182b",
+            "67001f",
+        )
+    ]
+)
 
 NAN_GREY = (0.5, 0.5, 0.5)
 
@@ -102,6 +147,7 @@ def diverging(t) -> np.ndarray:
 
 # --- The canvas ----------------------------------------------------------------------
 
+
 def text_width(s: str, size=13) -> float:
     """The pen's advance over ``s`` in px at the font's nearest size (the ink may overhang by
     a pixel)."""
@@ -127,7 +173,7 @@ class Canvas:
         x1, y1 = min(x + w, self.width), min(y + h, self.height)
         if x0 >= x1 or y0 >= y1:
             return
-        a = coverage[y0 - y:y1 - y, x0 - x:x1 - x, None]
+        a = coverage[y0 - y : y1 - y, x0 - x : x1 - x, None]
         region = self.rgb[y0:y1, x0:x1]
         region += (np.asarray(colour, np.float32) - region) * a
 
@@ -144,7 +190,7 @@ class Canvas:
         x0, y0 = max(x, 0), max(y, 0)
         x1, y1 = min(x + w, self.width), min(y + h, self.height)
         if x0 < x1 and y0 < y1:
-            self.rgb[y0:y1, x0:x1] = img[y0 - y:y1 - y, x0 - x:x1 - x, :3]
+            self.rgb[y0:y1, x0:x1] = img[y0 - y : y1 - y, x0 - x : x1 - x, :3]
 
     def rect(self, x, y, w, h, fill=None, stroke=None, width=1.0) -> None:
         """Fill the pixels [x, x + w) x [y, y + h) (rounded to whole pixels) with ``fill`` and
@@ -169,10 +215,11 @@ class Canvas:
         finite = pts[np.isfinite(pts).all(axis=1)]
         if not len(finite):
             return
-        reach = max(width, 1.0) / 2 + 2                 # coverage only near the points
+        reach = max(width, 1.0) / 2 + 2  # coverage only near the points
         x0, y0 = np.maximum(np.floor(finite.min(axis=0) - reach), 0).astype(int)
-        x1, y1 = np.minimum(np.ceil(finite.max(axis=0) + reach),
-                            (self.width, self.height)).astype(int)
+        x1, y1 = np.minimum(np.ceil(finite.max(axis=0) + reach), (self.width, self.height)).astype(
+            int
+        )
         if x0 >= x1 or y0 >= y1:
             return
         coverage = np.zeros((y1 - y0, x1 - x0), np.float32)
@@ -181,7 +228,7 @@ class Canvas:
             run = run[np.isfinite(run).all(axis=1)]
             if not len(run):
                 continue
-            for piece in (_dashes(run, dash, width) if dash else [run]):
+            for piece in _dashes(run, dash, width) if dash else [run]:
                 _stroke(coverage, piece, width)
         self._blend(x0, y0, coverage, colour)
 
@@ -202,11 +249,11 @@ class Canvas:
         s = str(s)
         atlas, table = _glyphs(size)
         shift = {"start": 0.0, "middle": -0.5, "end": -1.0}[anchor] * self.text_width(s, size)
-        pen, cells = round(shift), []            # relative to the anchor
+        pen, cells = round(shift), []  # relative to the anchor
         for c in s:
             gx, gy, w, h, left, top, adv = _glyph(table, c)
             if w and h:
-                cells.append((pen + left, -top, atlas[gy:gy + h, gx:gx + w]))
+                cells.append((pen + left, -top, atlas[gy : gy + h, gx : gx + w]))
             pen += adv
         if not cells:
             return
@@ -216,9 +263,9 @@ class Canvas:
         y1 = max(cy + g.shape[0] for _, cy, g in cells)
         mask = np.zeros((y1 - y0, x1 - x0), np.float32)
         for cx, cy, g in cells:
-            sub = mask[cy - y0:cy - y0 + g.shape[0], cx - x0:cx - x0 + g.shape[1]]
+            sub = mask[cy - y0 : cy - y0 + g.shape[0], cx - x0 : cx - x0 + g.shape[1]]
             np.maximum(sub, g, out=sub)
-        ax, ay = -x0, -y0                           # the anchor in the mask
+        ax, ay = -x0, -y0  # the anchor in the mask
         if rotate == 0:
             self._blend(round(x) - ax, round(y) - ay, mask, colour)
         else:  # (dx, dy) -> (dy, -dx): the mask's anchor moves to (ay, width - ax)
@@ -230,10 +277,12 @@ class Canvas:
         """An 8-bit RGB PNG of the canvas, written whole or not at all (the one PNG writer,
         compare.write_png)."""
         from .compare import write_png
+
         write_png(path, self.rgb)
 
 
 # --- Lines ---------------------------------------------------------------------------
+
 
 def _stroke(coverage: np.ndarray, pts: np.ndarray, width: float) -> None:
     """Raise ``coverage`` to that of a polyline ``width`` px wide: per segment, 1 within
@@ -274,6 +323,7 @@ def _dashes(pts: np.ndarray, dash, width: float) -> list:
             a = b = (start + min(start + on, s[-1])) / 2
         inner = (s > a) & (s < b)
         along = np.concatenate([[a], s[inner], [b]])
-        pieces.append(np.stack([np.interp(along, s, pts[:, 0]),
-                                np.interp(along, s, pts[:, 1])], axis=1))
+        pieces.append(
+            np.stack([np.interp(along, s, pts[:, 0]), np.interp(along, s, pts[:, 1])], axis=1)
+        )
     return pieces

@@ -21,14 +21,20 @@ def _table(metrics: dict) -> str:
             f"<td>{c['smoothness']:.3f}</td><td>{c['mae']:.4f}</td><td>{c['rmse']:.4f}</td>"
             f"<td>{_fmt(c['rel_luminance_error'], '+.1%')}</td>"
             f"<td>{_fmt(c['psnr_db'], '.2f')}</td><td>{c['ciede2000_mean']:.2f}</td>"
-            f"<td>{c['ciede2000_p95']:.2f}</td></tr>")
+            f"<td>{c['ciede2000_p95']:.2f}</td></tr>"
+        )
     o = metrics["overall"]
-    rows.append(f"<tr class='all'><td colspan=4>all cells</td><td>{o['mae']:.4f}</td>"
-                f"<td>{o['rmse']:.4f}</td><td>{_fmt(o['rel_luminance_error'], '+.1%')}</td>"
-                f"<td>{_fmt(o['psnr_db'], '.2f')}</td>"
-                f"<td>{o['ciede2000_mean']:.2f}</td><td>{o['ciede2000_p95']:.2f}</td></tr>")
-    head = ("<tr><th>row</th><th>col</th><th>metallic</th><th>smoothness</th><th>MAE</th>"
-            "<th>RMSE</th><th>rel. luminance</th><th>PSNR (dB)</th><th>&Delta;E00 mean</th><th>&Delta;E00 p95</th></tr>")
+    rows.append(
+        f"<tr class='all'><td colspan=4>all cells</td><td>{o['mae']:.4f}</td>"
+        f"<td>{o['rmse']:.4f}</td><td>{_fmt(o['rel_luminance_error'], '+.1%')}</td>"
+        f"<td>{_fmt(o['psnr_db'], '.2f')}</td>"
+        f"<td>{o['ciede2000_mean']:.2f}</td><td>{o['ciede2000_p95']:.2f}</td></tr>"
+    )
+    head = (
+        "<tr><th>row</th><th>col</th><th>metallic</th><th>smoothness</th><th>MAE</th>"
+        "<th>RMSE</th><th>rel. luminance</th><th>PSNR (dB)</th><th>&Delta;E00 mean</th>"
+        "<th>&Delta;E00 p95</th></tr>"
+    )
     return f"<table>{head}{''.join(rows)}</table>"
 
 
@@ -44,30 +50,51 @@ def _grid(metrics: dict, key: str, fmt: str) -> str:
     value = {(c["row"], c["col"]): c[key] for c in cells}
     smooth = {c["row"]: c["smoothness"] for c in cells}
     metal = {c["col"]: c["metallic"] for c in cells}
-    head = "<tr><th>smoothness \\ metallic</th>" + "".join(
-        f"<th>{metal[j]:.2f}</th>" for j in range(cols)) + "</tr>"
-    body = "".join("<tr><th>" + f"{smooth[i]:.2f}</th>" + "".join(
-        f"<td>{_fmt(value[(i, j)], fmt)}</td>" for j in range(cols)) + "</tr>"
-        for i in range(rows))
+    head = (
+        "<tr><th>smoothness \\ metallic</th>"
+        + "".join(f"<th>{metal[j]:.2f}</th>" for j in range(cols))
+        + "</tr>"
+    )
+    body = "".join(
+        "<tr><th>"
+        + f"{smooth[i]:.2f}</th>"
+        + "".join(f"<td>{_fmt(value[(i, j)], fmt)}</td>" for j in range(cols))
+        + "</tr>"
+        for i in range(rows)
+    )
     return f"<table class='grid'>{head}{body}</table>"
 
 
 def _figures(a_dir, b_dir, cmp_dir, a_label, b_label, metrics) -> str:
-    figs = ((f"{a_dir}/render.png", a_label), (f"{b_dir}/render.png", b_label),
-            (f"{cmp_dir}/diff.png",
-             f"&Delta;E00 (black 0, white &ge; {metrics['heatmap_max_ciede2000']:g})"))
-    return "<div class='row'>" + "".join(
-        f"<figure><img src='{html.escape(src)}' alt='{html.escape(label)}'>"
-        f"<figcaption>{label if label.startswith('&') else html.escape(label)}</figcaption></figure>"
-        for src, label in figs) + "</div>"
+    figs = (
+        (f"{a_dir}/render.png", a_label),
+        (f"{b_dir}/render.png", b_label),
+        (
+            f"{cmp_dir}/diff.png",
+            f"&Delta;E00 (black 0, white &ge; {metrics['heatmap_max_ciede2000']:g})",
+        ),
+    )
+    return (
+        "<div class='row'>"
+        + "".join(
+            f"<figure><img src='{html.escape(src)}' alt='{html.escape(label)}'>"
+            f"<figcaption>{label if label.startswith('&') else html.escape(label)}"
+            "</figcaption></figure>"
+            for src, label in figs
+        )
+        + "</div>"
+    )
 
 
 def _summary(metrics: dict) -> str:
     o = metrics["overall"]
-    return (f"Over all sphere pixels: mean &Delta;E00 <b>{o['ciede2000_mean']:.2f}</b> "
-            f"(95th percentile {o['ciede2000_p95']:.2f}), PSNR {_fmt(o['psnr_db'], '.2f')} dB (displayed "
-            f"colours), relative luminance error {_fmt(o['rel_luminance_error'], '+.1%')}, MAE "
-            f"{o['mae']:.4f} and RMSE {o['rmse']:.4f} (linear values).")
+    return (
+        f"Over all sphere pixels: mean &Delta;E00 <b>{o['ciede2000_mean']:.2f}</b> "
+        f"(95th percentile {o['ciede2000_p95']:.2f}), PSNR {_fmt(o['psnr_db'], '.2f')} dB "
+        f"(displayed "
+        f"colours), relative luminance error {_fmt(o['rel_luminance_error'], '+.1%')}, MAE "
+        f"{o['mae']:.4f} and RMSE {o['rmse']:.4f} (linear values)."
+    )
 
 
 SPLIT_SUM_NOTE = """<p>The split-sum (Karis 2013) replaces the integral of f_r L (n.l) by two
@@ -102,8 +129,8 @@ Cook-Torrance G keeps more energy on rough surfaces, most at grazing views, and 
 below 1 (brute-force quadrature of the model's formulas agrees; tests/slow/test_energy.py). With
 energy compensated (Turquin 2019's albedo scaling with Kulla and Conty's Fresnel term, as
 Cycles compensates Principled's GGX) the lobe reflects everything: the dotted curves sit at 1.
-Solid: the first set; dashed: the second; dotted: the third. Curves are measured from the renders (pixels binned by
-view angle, n.v from each pixel's place on the sphere).</p>"""
+Solid: the first set; dashed: the second; dotted: the third. Curves are measured from the
+renders (pixels binned by view angle, n.v from each pixel's place on the sphere).</p>"""
 
 
 def attribution_table(steps) -> str:
@@ -112,17 +139,26 @@ def attribution_table(steps) -> str:
     left after each switch (and its change from the step it follows), and the overall means."""
     cells = steps[0][1]["cells"]
     after = [step[2] if len(step) > 2 else k - 1 for k, step in enumerate(steps)]
-    head = ("<tr><th>metallic</th><th>smoothness</th>" +
-            "".join(f"<th>{html.escape(step[0])}</th>" for step in steps) + "</tr>")
+    head = (
+        "<tr><th>metallic</th><th>smoothness</th>"
+        + "".join(f"<th>{html.escape(step[0])}</th>" for step in steps)
+        + "</tr>"
+    )
 
     def row(values):
-        return "".join(f"<td>{v:.2f}" + (f" ({v - values[after[k]]:+.2f})" if k else "") +
-                       "</td>" for k, v in enumerate(values))
+        return "".join(
+            f"<td>{v:.2f}" + (f" ({v - values[after[k]]:+.2f})" if k else "") + "</td>"
+            for k, v in enumerate(values)
+        )
+
     rows = []
     for i, c in enumerate(cells):
         values = [step[1]["cells"][i]["ciede2000_mean"] for step in steps]
-        rows.append(f"<tr><td>{c['metallic']:.2f}</td><td>{c['smoothness']:.2f}</td>"
-                    + row(values) + "</tr>")
+        rows.append(
+            f"<tr><td>{c['metallic']:.2f}</td><td>{c['smoothness']:.2f}</td>"
+            + row(values)
+            + "</tr>"
+        )
     overall = [step[1]["overall"]["ciede2000_mean"] for step in steps]
     rows.append("<tr class='all'><td colspan=2>all cells</td>" + row(overall) + "</tr>")
     return f"<table>{head}{''.join(rows)}</table>"
@@ -131,17 +167,25 @@ def attribution_table(steps) -> str:
 def furnace_section(furnace: dict) -> str:
     from .energy import mean_albedo
     from .figures import furnace_figure
-    head = "<tr><th>smoothness</th>" + "".join(
-        f"<th>{html.escape(g)}: mean</th><th>max</th>" for g in furnace) + "</tr>"
+
+    head = (
+        "<tr><th>smoothness</th>"
+        + "".join(f"<th>{html.escape(g)}: mean</th><th>max</th>" for g in furnace)
+        + "</tr>"
+    )
     rows = []
     curves = list(furnace.values())
     for i, c in enumerate(curves[0]):
         cells = "".join(
             f"<td>{mean_albedo(cs[i]):.3f}</td>"
-            f"<td>{max(x for x in cs[i]['albedo'] if x is not None):.3f}</td>" for cs in curves)
+            f"<td>{max(x for x in cs[i]['albedo'] if x is not None):.3f}</td>"
+            for cs in curves
+        )
         rows.append(f"<tr><td>{c['smoothness']:.2f}</td>{cells}</tr>")
-    return (f"<h2>Energy: white furnace</h2>{FURNACE_NOTE}{furnace_figure(furnace).svg()}"
-            f"<table>{head}{''.join(rows)}</table>")
+    return (
+        f"<h2>Energy: white furnace</h2>{FURNACE_NOTE}{furnace_figure(furnace).svg()}"
+        f"<table>{head}{''.join(rows)}</table>"
+    )
 
 
 PLOTS_NOTE = """<p>The BRDF itself, evaluated by the OSL shader's own code at one configuration
@@ -166,22 +210,31 @@ the specular's Fresnel term grows.</p>"""
 def plots_section(plots) -> str:
     """``plots``: (label, folder, plot.json data) per sphere."""
     from .brdf_plot import slice_name
+
     parts = ["<h2>The BRDF itself: slices, lobes and directional albedo</h2>", PLOTS_NOTE]
     for label, folder, data in plots:
         variants = data["variants"]
         figs = [(slice_name(), f"f_r: {variants[0]['label']}")]
         figs += [(slice_name(tag=v["tag"]), f"f_r: {v['label']}") for v in variants[1:]]
-        figs += [(slice_name(tag=f"diff_{v['tag']}"), f"({v['label']} &minus; this) / this")
-                 for v in variants[1:]]
+        figs += [
+            (slice_name(tag=f"diff_{v['tag']}"), f"({v['label']} &minus; this) / this")
+            for v in variants[1:]
+        ]
         row = "".join(
             f"<figure class='plot'><img src='{html.escape(folder)}/{name}.png' "
-            f"alt='{html.escape(name)}'><figcaption>{caption if '&' in caption else html.escape(caption)}"
-            f"</figcaption></figure>" for name, caption in figs)
+            f"alt='{html.escape(name)}'><figcaption>"
+            f"{caption if '&' in caption else html.escape(caption)}"
+            f"</figcaption></figure>"
+            for name, caption in figs
+        )
         curves = "".join(
             f"<figure><img src='{html.escape(folder)}/{name}' alt='{name}'></figure>"
-            for name in ("lobe.svg", "albedo.svg"))
-        parts.append(f"<h3>{html.escape(label)}</h3><div class='row'>{row}</div>"
-                     f"<div class='row'>{curves}</div>")
+            for name in ("lobe.svg", "albedo.svg")
+        )
+        parts.append(
+            f"<h3>{html.escape(label)}</h3><div class='row'>{row}</div>"
+            f"<div class='row'>{curves}</div>"
+        )
     return "".join(parts)
 
 
@@ -222,13 +275,19 @@ def write_parity_report(out_dir: Path, entries, bound: float) -> Path:
         sections.append(
             f"<h2>{html.escape(name)}: parity {verdict} (worst sphere {worst:.2f}, bound "
             f"{bound:g})</h2>"
-            + _figures(f"{name}/cook_torrance", f"{name}/principled", f"{name}/compare",
-                       "Cook-Torrance (Smith, Lambert, reference IBL)",
-                       "Principled BSDF (GGX)", metrics)
+            + _figures(
+                f"{name}/cook_torrance",
+                f"{name}/principled",
+                f"{name}/compare",
+                "Cook-Torrance (Smith, Lambert, reference IBL)",
+                "Principled BSDF (GGX)",
+                metrics,
+            )
             + f"<p>{_summary(metrics)} {scene.get('samples', '?')} samples per pixel.</p>"
             + f"<h3>Mean &Delta;E00 per sphere</h3>{_grid(metrics, 'ciede2000_mean', '.2f')}"
             + "<h3>Relative luminance error per sphere</h3>"
-            + _grid(metrics, 'rel_luminance_error', '+.1%'))
+            + _grid(metrics, 'rel_luminance_error', '+.1%')
+        )
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: Principled parity</title>
 {STYLE}</head><body>
@@ -238,8 +297,15 @@ def write_parity_report(out_dir: Path, entries, bound: float) -> Path:
     return _write(out_dir, page)
 
 
-def write_report(out_dir: Path, comparisons, scene: dict, timings: dict, attribution=None,
-                 furnace=None, plots=None) -> Path:
+def write_report(
+    out_dir: Path,
+    comparisons,
+    scene: dict,
+    timings: dict,
+    attribution=None,
+    furnace=None,
+    plots=None,
+) -> Path:
     """Write report.html into out_dir (whole or not at all); image paths are relative.
 
     ``comparisons``: (render folder, reference folder, comparison folder, render label,
@@ -247,22 +313,41 @@ def write_report(out_dir: Path, comparisons, scene: dict, timings: dict, attribu
     ``attribution``: (switch label, metrics against Principled) in switch order;
     ``furnace``: {curve set label: energy.directional_albedo curves}; ``plots``: (label,
     folder, plot.json data) of the BRDF plots."""
-    params = {k: scene[k] for k in ("rows", "cols", "width", "height", "samples", "hdri",
-                                    "hdri_strength", "hdri_rotation_deg", "sun", "model",
-                                    "principled_distribution", "blender") if k in scene}
+    params = {
+        k: scene[k]
+        for k in (
+            "rows",
+            "cols",
+            "width",
+            "height",
+            "samples",
+            "hdri",
+            "hdri_strength",
+            "hdri_rotation_deg",
+            "sun",
+            "model",
+            "principled_distribution",
+            "blender",
+        )
+        if k in scene
+    }
     main, studies = comparisons[0], comparisons[1:]
     metrics = main[5]
     study_html = ""
     if studies:
-        study_html = ("<h2>Baked IBL against the reference integration; the node group against "
-                      "the OSL shader</h2>" + SPLIT_SUM_NOTE)
+        study_html = (
+            "<h2>Baked IBL against the reference integration; the node group against "
+            "the OSL shader</h2>" + SPLIT_SUM_NOTE
+        )
         for a_dir, b_dir, cmp_dir, a_label, b_label, m in studies:
-            study_html += (f"<h3>{html.escape(a_label)} against {html.escape(b_label)}</h3>"
-                           f"{_figures(a_dir, b_dir, cmp_dir, a_label, b_label, m)}"
-                           f"<p>{_summary(m)}</p>"
-                           f"<h4>Mean &Delta;E00 per cell</h4>{_grid(m, 'ciede2000_mean', '.2f')}"
-                           f"<h4>Relative luminance error per cell (positive: brighter than the "
-                           f"reference)</h4>{_grid(m, 'rel_luminance_error', '+.1%')}")
+            study_html += (
+                f"<h3>{html.escape(a_label)} against {html.escape(b_label)}</h3>"
+                f"{_figures(a_dir, b_dir, cmp_dir, a_label, b_label, m)}"
+                f"<p>{_summary(m)}</p>"
+                f"<h4>Mean &Delta;E00 per cell</h4>{_grid(m, 'ciede2000_mean', '.2f')}"
+                f"<h4>Relative luminance error per cell (positive: brighter than the "
+                f"reference)</h4>{_grid(m, 'rel_luminance_error', '+.1%')}"
+            )
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: sphere matrix report</title>
 {STYLE}</head><body>
@@ -272,7 +357,9 @@ All renders use the same world HDRI and Sun; the Cook-Torrance renders are the O
 (docs/model.md), the reference is Blender's Principled BSDF path-traced by Cycles.</p>
 {_figures(*main)}
 <h2>Summary</h2>
-<p>{_summary(metrics)} Render times: {html.escape(', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))}.</p>
+<p>{_summary(metrics)} Render times: {
+        html.escape(', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))
+    }.</p>
 <p>Differences are expected: the seed model uses the Cook-Torrance G and Disney diffuse, with
 no multiple scattering, while Principled uses height-correlated Smith G, multiscatter GGX and
 energy-conserving layering.</p>
@@ -282,8 +369,13 @@ energy-conserving layering.</p>
 compare the displayed colours (render.png, AgX view transform); the relative luminance error
 compares the mean Rec. 709 luminance of the raw values. Cells use the pixels within 95% of
 each sphere's radius.</p>
-{"<h2>Attribution: what explains the difference from Principled</h2>" + ATTRIBUTION_NOTE +
- attribution_table(attribution) if attribution else ""}
+{
+        "<h2>Attribution: what explains the difference from Principled</h2>"
+        + ATTRIBUTION_NOTE
+        + attribution_table(attribution)
+        if attribution
+        else ""
+    }
 {furnace_section(furnace) if furnace else ""}
 {plots_section(plots) if plots else ""}
 {study_html}

@@ -30,17 +30,24 @@ class SvgCanvas:
 
     def __init__(self, width: int, height: int, background=(1.0, 1.0, 1.0)):
         self.width, self.height = int(width), int(height)
-        self.parts = [f"<svg xmlns='http://www.w3.org/2000/svg' width='{self.width}' "
-                      f"height='{self.height}' viewBox='0 0 {self.width} {self.height}' "
-                      "font-family='Inter, sans-serif'>",
-                      f"<rect width='{self.width}' height='{self.height}' "
-                      f"fill='{_colour(background)}'/>"]
+        self.parts = [
+            f"<svg xmlns='http://www.w3.org/2000/svg' width='{self.width}' "
+            f"height='{self.height}' viewBox='0 0 {self.width} {self.height}' "
+            "font-family='Inter, sans-serif'>",
+            f"<rect width='{self.width}' height='{self.height}' fill='{_colour(background)}'/>",
+        ]
 
     def rect(self, x, y, w, h, fill=None, stroke=None, width=1.0) -> None:
-        self.parts.append(f"<rect x='{x:.1f}' y='{y:.1f}' width='{w:.1f}' height='{h:.1f}' "
-                          f"fill='{_colour(fill) if fill is not None else 'none'}'"
-                          + (f" stroke='{_colour(stroke)}' stroke-width='{width:g}'"
-                             if stroke is not None else "") + "/>")
+        self.parts.append(
+            f"<rect x='{x:.1f}' y='{y:.1f}' width='{w:.1f}' height='{h:.1f}' "
+            f"fill='{_colour(fill) if fill is not None else 'none'}'"
+            + (
+                f" stroke='{_colour(stroke)}' stroke-width='{width:g}'"
+                if stroke is not None
+                else ""
+            )
+            + "/>"
+        )
 
     def line(self, points, colour, width=1.5, dash=None) -> None:
         """A polyline; a point with a NaN breaks it there (as the raster canvas's)."""
@@ -51,18 +58,22 @@ class SvgCanvas:
             if len(run) < 2:
                 continue
             coords = " ".join(f"{x:.1f},{y:.1f}" for x, y in run)
-            self.parts.append(f"<polyline points='{coords}' fill='none' "
-                              f"stroke='{_colour(colour)}' stroke-width='{width:g}' "
-                              f"stroke-linejoin='round' stroke-linecap='round'{dashes}/>")
+            self.parts.append(
+                f"<polyline points='{coords}' fill='none' "
+                f"stroke='{_colour(colour)}' stroke-width='{width:g}' "
+                f"stroke-linejoin='round' stroke-linecap='round'{dashes}/>"
+            )
 
     def text_width(self, s: str, size=13) -> float:
         return text_width(s, size)
 
     def text(self, x, y, s, colour=(0, 0, 0), size=13, anchor="start", rotate=0) -> None:
         turn = f" transform='rotate(-90 {x:.1f} {y:.1f})'" if rotate == 90 else ""
-        self.parts.append(f"<text x='{x:.1f}' y='{y:.1f}' font-size='{size}' "
-                          f"text-anchor='{anchor}' fill='{_colour(colour)}'{turn}>"
-                          f"{html.escape(str(s))}</text>")
+        self.parts.append(
+            f"<text x='{x:.1f}' y='{y:.1f}' font-size='{size}' "
+            f"text-anchor='{anchor}' fill='{_colour(colour)}'{turn}>"
+            f"{html.escape(str(s))}</text>"
+        )
 
     def svg(self) -> str:
         return "".join(self.parts) + "</svg>"

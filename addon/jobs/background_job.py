@@ -48,11 +48,19 @@ sys.exit(main({argv!r}))
 
 def child_command(argv: list) -> list:
     """The command line of a child process running ``ctlab`` with ``argv``."""
-    code = _CHILD.format(init=str(PACKAGE_ROOT / "__init__.py"), root=str(PACKAGE_ROOT),
-                         argv=list(argv))
+    code = _CHILD.format(
+        init=str(PACKAGE_ROOT / "__init__.py"), root=str(PACKAGE_ROOT), argv=list(argv)
+    )
     if bpy.app.binary_path and not getattr(bpy.app, "module", False):
-        return [bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1",
-                "--python-expr", code]
+        return [
+            bpy.app.binary_path,
+            "-b",
+            "--factory-startup",
+            "--python-exit-code",
+            "1",
+            "--python-expr",
+            code,
+        ]
     return [sys.executable, "-c", code]
 
 
@@ -68,10 +76,20 @@ class Job:
         self.cancel_file = Path(tempfile.gettempdir()) / f"ctlab-cancel-{os.getpid()}-{id(self)}"
         self.cancel_file.unlink(missing_ok=True)
         # the child uses the add-on's cache folder (it has no preferences to read it from)
-        env = dict(os.environ, PYTHONUNBUFFERED="1", CTLAB_CANCEL_FILE=str(self.cancel_file),
-                   CTLAB_JSON_EVENTS="1", CTLAB_CACHE=str(cache_dir()))
-        self.process = subprocess.Popen(child_command(argv), stdout=subprocess.PIPE,
-                                        stderr=subprocess.STDOUT, text=True, env=env)
+        env = dict(
+            os.environ,
+            PYTHONUNBUFFERED="1",
+            CTLAB_CANCEL_FILE=str(self.cancel_file),
+            CTLAB_JSON_EVENTS="1",
+            CTLAB_CACHE=str(cache_dir()),
+        )
+        self.process = subprocess.Popen(
+            child_command(argv),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
+        )
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
 
@@ -90,9 +108,9 @@ class Job:
                 self.fraction = (k - 1) / n
                 self.message = f"{k}/{n}: {str(event['message']).split(':')[0]}"
             elif line.startswith("ctlab: error:"):
-                self.message = line[len("ctlab: error:"):].strip()
+                self.message = line[len("ctlab: error:") :].strip()
 
-    KILL_AFTER = 30.0          # seconds a cancelled child may take to finish its render
+    KILL_AFTER = 30.0  # seconds a cancelled child may take to finish its render
 
     def poll(self) -> str:
         """Update and return the state (never blocks)."""

@@ -31,9 +31,21 @@ from . import pipeline
 from ..blender.renderer import ENGINES
 from ..core.errors import Cancelled, UserError
 from ..core.paths import ascii_float, ascii_int, clean, input_file, safe_name
-from ..core.model import (DEFAULT_ALBEDO, DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IBL_MODES,
-                          IMPLEMENTATIONS, LIGHT_TRANSPORTS, MATRIX_ALBEDO, SHADERS, UNITS,
-                          VIEWS, ModelOptions, indirect_light)
+from ..core.model import (
+    DEFAULT_ALBEDO,
+    DIFFUSE_MODELS,
+    ENERGY_MODES,
+    G_MODELS,
+    IBL_MODES,
+    IMPLEMENTATIONS,
+    LIGHT_TRANSPORTS,
+    MATRIX_ALBEDO,
+    SHADERS,
+    UNITS,
+    VIEWS,
+    ModelOptions,
+    indirect_light,
+)
 from ..core.settings import MatrixSettings
 
 EXIT_BAD_INPUT = 2
@@ -84,7 +96,7 @@ def parse_vector(text: str, n: int, what: str) -> tuple:
     return values
 
 
-_DIGITS = re.compile(r"[0-9]+", re.ASCII)      # str.isdigit also takes '²', int() does not
+_DIGITS = re.compile(r"[0-9]+", re.ASCII)  # str.isdigit also takes '²', int() does not
 
 
 def parse_grid(text: str) -> tuple:
@@ -96,6 +108,7 @@ def parse_grid(text: str) -> tuple:
 
 # ---------------------------------------------------------------------------------------
 # Output: human lines, or JSON events for the background job
+
 
 def _json_events() -> bool:
     return bool(os.environ.get("CTLAB_JSON_EVENTS"))
@@ -114,8 +127,10 @@ def warn(message: str) -> None:
 
 def _progress(step: int, total: int, message: str) -> None:
     if _json_events():
-        print(json.dumps({"event": "progress", "step": step, "total": total,
-                          "message": message}), flush=True)
+        print(
+            json.dumps({"event": "progress", "step": step, "total": total, "message": message}),
+            flush=True,
+        )
     else:
         say(f"[{step}/{total}] {message}")
 
@@ -126,12 +141,14 @@ def _cancel_requested() -> bool:
 
 
 def events() -> pipeline.Events:
-    return pipeline.Events(progress=_progress, note=lambda m: say(f"  {m}"),
-                           cancelled=_cancel_requested, warn=warn)
+    return pipeline.Events(
+        progress=_progress, note=lambda m: say(f"  {m}"), cancelled=_cancel_requested, warn=warn
+    )
 
 
 # ---------------------------------------------------------------------------------------
 # The scene options: one table for the parser and for command lines built by callers
+
 
 @dataclass(frozen=True)
 class Arg:
@@ -141,44 +158,94 @@ class Arg:
     type: object = str
     default: object = None
     choices: tuple | None = None
-    flag_only: bool = False          # a switch without a value (store_true)
+    flag_only: bool = False  # a switch without a value (store_true)
 
 
 SCENE_ARGS = (
     Arg("--grid", "grid", "ROWSxCOLS of the sphere matrix (default 7x7; 5x3 with --parity)"),
-    Arg("--size", "size", "image width and height in pixels (default 512; 384 with --parity)",
-        int),
+    Arg("--size", "size", "image width and height in pixels (default 512; 384 with --parity)", int),
     Arg("--samples", "samples", "render samples per pixel (default 64; 256 with --parity)", int),
     Arg("--hdri", "hdri", "equirectangular HDRI (default: Blender's forest.exr)", str, ""),
     Arg("--hdri-strength", "hdri_strength", "the world's strength", float, 1.0),
     Arg("--hdri-rotation", "hdri_rotation", "degrees about Z", float, 0.0),
-    Arg("--sun-dir", "sun_dir", "X,Y,Z toward the Sun", str,
-        ",".join(map(str, MatrixSettings.sun_to_light))),
+    Arg(
+        "--sun-dir",
+        "sun_dir",
+        "X,Y,Z toward the Sun",
+        str,
+        ",".join(map(str, MatrixSettings.sun_to_light)),
+    ),
     Arg("--sun-strength", "sun_strength", "Sun irradiance (W/m^2)", float, 1.0),
-    Arg("--lights", "lights", "FILE.json: a list of Blender lights (type, location, "
+    Arg(
+        "--lights",
+        "lights",
+        "FILE.json: a list of Blender lights (type, location, "
         "rotation_euler, color, energy, ...) in place of the key Sun; Principled is rendered "
-        "under the same lights (docs/model.md \"Lights\")", str, ""),
-    Arg("--albedo", "albedo", "R,G,B linear albedo (default: gold)", str,
-        ",".join(map(str, MATRIX_ALBEDO))),
-    Arg("--ibl", "ibl", "indirect light: " + "|".join(IBL_MODES) + " (default: reference; "
+        "under the same lights (docs/model.md \"Lights\")",
+        str,
+        "",
+    ),
+    Arg(
+        "--albedo",
+        "albedo",
+        "R,G,B linear albedo (default: gold)",
+        str,
+        ",".join(map(str, MATRIX_ALBEDO)),
+    ),
+    Arg(
+        "--ibl",
+        "ibl",
+        "indirect light: " + "|".join(IBL_MODES) + " (default: reference; "
         "split_sum for the node group; the baked modes use the files of 'ctlab bake', made and "
-        "cached on demand; the lab transport's: scene path traces the world)"),
+        "cached on demand; the lab transport's: scene path traces the world)",
+    ),
     Arg("--g", "g_model", "|".join(G_MODELS), str, G_MODELS[0]),
     Arg("--diffuse", "diffuse_model", "|".join(DIFFUSE_MODELS), str, DIFFUSE_MODELS[0]),
-    Arg("--units", "units", "|".join(UNITS) + " (unity: x pi on direct light; lab transport "
-        "only)", str, UNITS[0]),
-    Arg("--energy", "energy", "|".join(ENERGY_MODES) + " (compensated: Kulla-Conty multiple "
-        "scattering)", str, ENERGY_MODES[0]),
-    Arg("--light-transport", "light_transport", "|".join(LIGHT_TRANSPORTS) + " (lab: the "
+    Arg(
+        "--units",
+        "units",
+        "|".join(UNITS) + " (unity: x pi on direct light; lab transport only)",
+        str,
+        UNITS[0],
+    ),
+    Arg(
+        "--energy",
+        "energy",
+        "|".join(ENERGY_MODES) + " (compensated: Kulla-Conty multiple scattering)",
+        str,
+        ENERGY_MODES[0],
+    ),
+    Arg(
+        "--light-transport",
+        "light_transport",
+        "|".join(LIGHT_TRANSPORTS) + " (lab: the "
         "model lights itself, exactly, from the HDRI, the Sun and the lights; scene: Cycles "
         "path traces the model's closures, plus its correction for the world and the lights)",
-        str, LIGHT_TRANSPORTS[0]),
-    Arg("--env-samples", "env_samples", "environment samples per shading point and render "
-        "sample (each of BRDF and environment sampling)", int, 4),
-    Arg("--env-visibility", "env_visibility",
-        "trace environment samples for occlusion by other objects", flag_only=True),
-    Arg("--principled-distribution", "principled_distribution", "Principled's GGX",
-        str, "MULTI_GGX", ("MULTI_GGX", "GGX")),
+        str,
+        LIGHT_TRANSPORTS[0],
+    ),
+    Arg(
+        "--env-samples",
+        "env_samples",
+        "environment samples per shading point and render "
+        "sample (each of BRDF and environment sampling)",
+        int,
+        4,
+    ),
+    Arg(
+        "--env-visibility",
+        "env_visibility",
+        "trace environment samples for occlusion by other objects",
+        flag_only=True,
+    ),
+    Arg(
+        "--principled-distribution",
+        "principled_distribution",
+        "Principled's GGX",
+        str,
+        "MULTI_GGX",
+        ("MULTI_GGX", "GGX"),
+    ),
     Arg("--seed", "seed", "the render's seed", int, 0),
     Arg("--verbose", "verbose", "show Blender's own output", flag_only=True),
 )
@@ -190,9 +257,14 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
         if a.flag_only:
             p.add_argument(a.flag, dest=a.dest, action="store_true", help=a.help)
         else:
-            p.add_argument(a.flag, dest=a.dest, default=a.default,
-                           type={int: ascii_int, float: ascii_float}.get(a.type, a.type),
-                           choices=a.choices, help=a.help)
+            p.add_argument(
+                a.flag,
+                dest=a.dest,
+                default=a.default,
+                type={int: ascii_int, float: ascii_float}.get(a.type, a.type),
+                choices=a.choices,
+                help=a.help,
+            )
 
 
 @functools.cache
@@ -200,10 +272,14 @@ def _flags(command: str) -> dict:
     """dest -> (its long option, whether it is a flag without a value), of a subcommand's
     parser: the one table command lines are written from."""
     parser = build_parser()
-    sub = next(a for a in parser._actions
-               if isinstance(a, argparse._SubParsersAction)).choices[command]
-    return {a.dest: (max(a.option_strings, key=len), a.nargs == 0)
-            for a in sub._actions if a.option_strings and a.dest != "help"}
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[
+        command
+    ]
+    return {
+        a.dest: (max(a.option_strings, key=len), a.nargs == 0)
+        for a in sub._actions
+        if a.option_strings and a.dest != "help"
+    }
 
 
 def argv(command: str, *words, **values) -> list:
@@ -243,22 +319,49 @@ def settings_from(args, shader: str, view: str) -> MatrixSettings:
     ibl = args.ibl or indirect_light(shader)
     # degrees on the command line, radians inside (the Mapping node's unit)
     if not (math.isfinite(args.hdri_rotation) and abs(args.hdri_rotation) <= FLOAT32_MAX):
-        raise UserError(f"hdri rotation {args.hdri_rotation} out of range; use a finite "
-                        "number of degrees")
-    model = ModelOptions(view=view, g_model=args.g_model, diffuse_model=args.diffuse_model,
-                         units=args.units, energy=args.energy, ibl=ibl, env_samples=args.env_samples,
-                         env_visibility=args.env_visibility, seed=args.seed,
-                         light_transport=args.light_transport)
-    hdri = str(input_file(args.hdri, "HDRI", missing=f"HDRI not found: {args.hdri} (give an "
-                          "existing equirectangular .exr or .hdr file)")) if args.hdri else ""
-    s = MatrixSettings(rows=rows, cols=cols, hdri=hdri, hdri_strength=args.hdri_strength,
-                       hdri_rotation=math.radians(args.hdri_rotation),
-                       sun_to_light=parse_vector(args.sun_dir, 3, "sun direction"),
-                       sun_strength=args.sun_strength,
-                       albedo=parse_vector(args.albedo, 3, "albedo"), shader=shader,
-                       principled_distribution=args.principled_distribution,
-                       width=args.size, height=args.size, model=model,
-                       **lights_from(args))
+        raise UserError(
+            f"hdri rotation {args.hdri_rotation} out of range; use a finite number of degrees"
+        )
+    model = ModelOptions(
+        view=view,
+        g_model=args.g_model,
+        diffuse_model=args.diffuse_model,
+        units=args.units,
+        energy=args.energy,
+        ibl=ibl,
+        env_samples=args.env_samples,
+        env_visibility=args.env_visibility,
+        seed=args.seed,
+        light_transport=args.light_transport,
+    )
+    hdri = (
+        str(
+            input_file(
+                args.hdri,
+                "HDRI",
+                missing=f"HDRI not found: {args.hdri} (give an "
+                "existing equirectangular .exr or .hdr file)",
+            )
+        )
+        if args.hdri
+        else ""
+    )
+    s = MatrixSettings(
+        rows=rows,
+        cols=cols,
+        hdri=hdri,
+        hdri_strength=args.hdri_strength,
+        hdri_rotation=math.radians(args.hdri_rotation),
+        sun_to_light=parse_vector(args.sun_dir, 3, "sun direction"),
+        sun_strength=args.sun_strength,
+        albedo=parse_vector(args.albedo, 3, "albedo"),
+        shader=shader,
+        principled_distribution=args.principled_distribution,
+        width=args.size,
+        height=args.size,
+        model=model,
+        **lights_from(args),
+    )
     return s
 
 
@@ -267,6 +370,7 @@ def lights_from(args) -> dict:
     if not args.lights:
         return {}
     from ..core.lights import read_lights
+
     path = input_file(args.lights, "--lights", missing=f"lights file {args.lights} not found")
     return {"lights": tuple(read_lights(path)), "lights_file": str(path)}
 
@@ -274,39 +378,59 @@ def lights_from(args) -> dict:
 # ---------------------------------------------------------------------------------------
 # The commands
 
+
 def cmd_render(args) -> None:
     views = VIEWS if args.view == "all" else (args.view,)
     if args.engine == "eevee" and args.shader != "nodes":
         raise UserError("--engine eevee renders the node group only; add --shader nodes")
     settings = settings_from(args, args.shader, views[0])
     if args.pixel_centres and args.light_transport == "scene":
-        raise UserError("--pixel-centres renders one sample at each pixel centre; the scene "
-                        "transport is path traced: use --light-transport lab")
+        raise UserError(
+            "--pixel-centres renders one sample at each pixel centre; the scene "
+            "transport is path traced: use --light-transport lab"
+        )
     from ..blender.paths import resolve_hdri
     from ..core.hdri import load_hdri
+
     load_hdri(resolve_hdri(settings.hdri))
     out = check_path(args.out, "--out")
     dirs = {v: out / v for v in views} if args.view == "all" else {views[0]: out}
-    say(f"rendering {settings.shader} view={args.view} grid={args.grid} size={args.size} "
-        f"samples={args.samples} -> {out}")
+    say(
+        f"rendering {settings.shader} view={args.view} grid={args.grid} size={args.size} "
+        f"samples={args.samples} -> {out}"
+    )
 
     def report(i, view, d):
         _progress(i + 1, len(dirs), f"{view}: {d['render_seconds']:.1f} s -> {dirs[view]}")
-    pipeline.render_views(settings, dirs, args.samples, pixel_centres=args.pixel_centres,
-                          engine=args.engine, verbose=args.verbose, events=events(),
-                          on_view=report)
+
+    pipeline.render_views(
+        settings,
+        dirs,
+        args.samples,
+        pixel_centres=args.pixel_centres,
+        engine=args.engine,
+        verbose=args.verbose,
+        events=events(),
+        on_view=report,
+    )
     say("done: render.exr, render.png and scene.json in each folder")
 
 
 def cmd_compare(args) -> None:
     from ..core.compare import compare
+
     out = check_path(args.out, "--out")
-    result = compare(check_path(args.dir_a, "first render folder"),
-                     check_path(args.dir_b, "second render folder"), out)
+    result = compare(
+        check_path(args.dir_a, "first render folder"),
+        check_path(args.dir_b, "second render folder"),
+        out,
+    )
     o = result["overall"]
     psnr = "identical images" if o["psnr_db"] is None else f"PSNR {o['psnr_db']:.2f} dB"
-    say(f"compared {len(result['cells'])} cells: mean CIEDE2000 {o['ciede2000_mean']:.2f}, "
-        f"{psnr} -> {out / 'metrics.json'}, diff.png")
+    say(
+        f"compared {len(result['cells'])} cells: mean CIEDE2000 {o['ciede2000_mean']:.2f}, "
+        f"{psnr} -> {out / 'metrics.json'}, diff.png"
+    )
 
 
 def cmd_bake(args) -> None:
@@ -325,10 +449,9 @@ def job_inputs(args) -> tuple:
     base = settings_from(args, "osl", "full")
     if not args.parity:
         return "matrix", base, {}
-    if base.lights:         # one run under the lights, with --hdri or the first parity HDRI
-        hdris = [Path(base.hdri)] if args.hdri else \
-            pipeline.parity_hdris(args.parity_hdris)[:1]
-        name = safe_name(Path(base.lights_file).stem, "lights")   # never "..": stays in --out
+    if base.lights:  # one run under the lights, with --hdri or the first parity HDRI
+        hdris = [Path(base.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)[:1]
+        name = safe_name(Path(base.lights_file).stem, "lights")  # never "..": stays in --out
     else:
         hdris = [Path(base.hdri)] if args.hdri else pipeline.parity_hdris(args.parity_hdris)
         name = None
@@ -345,16 +468,20 @@ def check_workers(args) -> int:
 def say_done(result: dict) -> None:
     """The last line of a matrix or parity job (run here, or merged from its tasks)."""
     if result.get("job") == "parity":
-        say(f"done: parity {'holds' if result['holds'] else 'FAILS'} (every sphere's mean "
-            f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}")
+        say(
+            f"done: parity {'holds' if result['holds'] else 'FAILS'} (every sphere's mean "
+            f"CIEDE2000 <= {pipeline.PARITY_BOUND}); open {result['report']}"
+        )
         return
     de = {k: r["overall"]["ciede2000_mean"] for k, r in result["comparisons"].items()}
     psnr = result["comparisons"]["compare"]["overall"]["psnr_db"]
-    say(f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
+    say(
+        f"done: mean CIEDE2000 against Principled {de['compare']:.2f} "
         f"(PSNR {'-' if psnr is None else f'{psnr:.2f}'} dB); split-sum "
         f"against the reference {de['compare_split_sum']:.2f} (corrected "
         f"{de['compare_split_sum_corrected']:.2f}), Unity {de['compare_unity']:.2f}; "
-        f"node group against OSL {de['compare_nodes']:.3f}; open {result['report']}")
+        f"node group against OSL {de['compare_nodes']:.3f}; open {result['report']}"
+    )
 
 
 def cmd_matrix(args) -> None:
@@ -365,6 +492,7 @@ def cmd_matrix(args) -> None:
     _, base, _ = job_inputs(args)
     out = check_path("out/matrix" if args.out is None else args.out, "--out")
     from . import graph
+
     result = graph.run_matrix(base, args.samples, out, events(), args.verbose, workers)
     say_done(dict(result, job="matrix"))
 
@@ -376,14 +504,24 @@ def cmd_parity(args) -> None:
     _, base, extra = job_inputs(args)
     out = check_path("out/parity" if args.out is None else args.out, "--out")
     from . import graph
-    result = graph.run_parity(base, extra["hdris"], args.samples, out, events(),
-                                 args.verbose, name=extra["name"], workers=workers)
+
+    result = graph.run_parity(
+        base,
+        extra["hdris"],
+        args.samples,
+        out,
+        events(),
+        args.verbose,
+        name=extra["name"],
+        workers=workers,
+    )
     say_done(dict(result, job="parity"))
 
 
 def cmd_plan(args) -> None:
     """``ctlab plan matrix [options] --out JOB``: the job's task graph (jobs/graph.py)."""
     from . import graph
+
     if args.job == "parity":
         args.parity = True
     fill_defaults(args, PARITY_DEFAULTS if args.parity else DEFAULTS)
@@ -392,18 +530,27 @@ def cmd_plan(args) -> None:
     plan = graph.make_plan(job, base, args.samples, **extra)
     graph.write_plan(out, plan, openjd=args.openjd, flamenco=args.flamenco)
     renders = [t for t in plan["tasks"] if t["kind"] == "render"]
-    say(f"planned the {job} job: {len(renders)} render tasks and a merge -> "
-        f"{out / 'plan.json'}" + (f", {out / 'openjd' / 'template.json'}" if args.openjd
-                                  else "")
-        + (f", {out / 'flamenco' / f'ctlab-{job}.js'}" if args.flamenco else ""))
+    say(
+        f"planned the {job} job: {len(renders)} render tasks and a merge -> "
+        f"{out / 'plan.json'}"
+        + (f", {out / 'openjd' / 'template.json'}" if args.openjd else "")
+        + (f", {out / 'flamenco' / f'ctlab-{job}.js'}" if args.flamenco else "")
+    )
     for t in plan["tasks"]:
-        say(f"  {t['id']}  {t['kind']}" + (f"  {t['folder']}" if t["kind"] == "render"
-                                            else f"  after {len(t['depends'])} tasks"))
+        say(
+            f"  {t['id']}  {t['kind']}"
+            + (
+                f"  {t['folder']}"
+                if t["kind"] == "render"
+                else f"  after {len(t['depends'])} tasks"
+            )
+        )
 
 
 def cmd_task(args) -> None:
     """``ctlab task JOB ID``: one task of a plan (a finished one does nothing)."""
     from . import graph
+
     job = Path(os.path.normpath(check_path(args.job_dir, "job folder")))
     result = graph.run_task(job, args.task_id, events(), args.verbose)
     if result["ran"] and "scene" in result:
@@ -413,6 +560,7 @@ def cmd_task(args) -> None:
 def cmd_merge(args) -> None:
     """``ctlab merge JOB``: the comparisons, plots and report from the job folder."""
     from . import graph
+
     job = Path(os.path.normpath(check_path(args.job_dir, "job folder")))
     say_done(graph.merge(job, events(), args.verbose))
 
@@ -420,24 +568,36 @@ def cmd_merge(args) -> None:
 def plot_settings_from(args):
     """The plot's settings from the command line, validated (core.brdf_plot.PlotSettings)."""
     from ..core.brdf_plot import PlotSettings, parse_compare
+
     views = [v.strip() for item in (args.view or ()) for v in item.split(",") if v.strip()]
-    return PlotSettings(metallic=args.metallic, smoothness=args.smoothness,
-                        albedo=parse_vector(args.albedo, 3, "albedo"), g_model=args.g_model,
-                        diffuse_model=args.diffuse_model, units=args.units, energy=args.energy,
-                        shader=args.shader, views=tuple(views),
-                        compare=parse_compare(args.compare))
+    return PlotSettings(
+        metallic=args.metallic,
+        smoothness=args.smoothness,
+        albedo=parse_vector(args.albedo, 3, "albedo"),
+        g_model=args.g_model,
+        diffuse_model=args.diffuse_model,
+        units=args.units,
+        energy=args.energy,
+        shader=args.shader,
+        views=tuple(views),
+        compare=parse_compare(args.compare),
+    )
 
 
 def cmd_plot(args) -> None:
     """The BRDF plotted from the model's own code (pipeline.run_plot)."""
     settings = plot_settings_from(args)
     out = check_path(args.out, "--out")
-    say(f"plotting the {settings.shader} model: metallic {settings.metallic:g}, smoothness "
-        f"{settings.smoothness:g} -> {out}")
+    say(
+        f"plotting the {settings.shader} model: metallic {settings.metallic:g}, smoothness "
+        f"{settings.smoothness:g} -> {out}"
+    )
     data = pipeline.run_plot(settings, out, events(), args.verbose)
-    say(f"done: f_r up to {data['slice']['max']:.4g} /sr on the slice, mean directional "
+    say(
+        f"done: f_r up to {data['slice']['max']:.4g} /sr on the slice, mean directional "
         f"albedo {data['albedo']['mean_total']:.3f}; slice.exr, slice.png, lobe.svg, "
-        f"albedo.csv and plot.json in {out}")
+        f"albedo.csv and plot.json in {out}"
+    )
 
 
 def cmd_scene(args) -> None:
@@ -445,24 +605,44 @@ def cmd_scene(args) -> None:
     conversions (or, with --convert, its Principled materials against Cook-Torrance ones);
     jobs/scene_job.py."""
     from .scene_job import SceneJob, run_scene
-    blend = input_file(args.blend, ".blend file", missing=f"no such file: {args.blend}; give "
-                       "a .blend file")
+
+    blend = input_file(
+        args.blend, ".blend file", missing=f"no such file: {args.blend}; give a .blend file"
+    )
     out = check_path(args.out, "--out")
-    job = SceneJob(blend=blend, out=out, convert=args.convert,
-                   light_transport=args.light_transport, shader=args.shader,
-                   g_model=args.g_model, diffuse_model=args.diffuse_model, energy=args.energy,
-                   size=args.size, samples=args.samples, seed=args.seed, camera=args.camera,
-                   principled_distribution=args.principled_distribution, verbose=args.verbose)
-    what = "Principled materials converted to Cook-Torrance" if args.convert else \
-        "Cook-Torrance materials against Principled conversions"
-    say(f"scene {blend}: {what}, {args.light_transport} transport, size {args.size}, "
-        f"{args.samples} samples -> {out}")
+    job = SceneJob(
+        blend=blend,
+        out=out,
+        convert=args.convert,
+        light_transport=args.light_transport,
+        shader=args.shader,
+        g_model=args.g_model,
+        diffuse_model=args.diffuse_model,
+        energy=args.energy,
+        size=args.size,
+        samples=args.samples,
+        seed=args.seed,
+        camera=args.camera,
+        principled_distribution=args.principled_distribution,
+        verbose=args.verbose,
+    )
+    what = (
+        "Principled materials converted to Cook-Torrance"
+        if args.convert
+        else "Cook-Torrance materials against Principled conversions"
+    )
+    say(
+        f"scene {blend}: {what}, {args.light_transport} transport, size {args.size}, "
+        f"{args.samples} samples -> {out}"
+    )
     data = run_scene(job, events())
     for m in data["materials"]:
         de, ratio = m["ciede2000_mean"], m["luminance_ratio"]
-        say(f"  {m['name']}: {m['pixels']} px, mean CIEDE2000 "
+        say(
+            f"  {m['name']}: {m['pixels']} px, mean CIEDE2000 "
             f"{'-' if de is None else f'{de:.2f}'}, luminance model/Principled "
-            f"{'-' if ratio is None else f'{ratio:.4f}'}")
+            f"{'-' if ratio is None else f'{ratio:.4f}'}"
+        )
     say(f"done: metrics.json, diff.png, materials.png; open {data['report']}")
 
 
@@ -470,17 +650,28 @@ def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="ctlab", description="Cook-Torrance Lab batch tools")
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("render", help="render the sphere matrix with one shader and view")
-    r.add_argument("--shader", required=True, choices=SHADERS,
-                   help="the OSL shader, the node group (its default IBL: split_sum) or "
-                        "Principled BSDF")
+    r.add_argument(
+        "--shader",
+        required=True,
+        choices=SHADERS,
+        help="the OSL shader, the node group (its default IBL: split_sum) or Principled BSDF",
+    )
     r.add_argument("--out", required=True, help="output folder")
-    r.add_argument("--view", default="full",
-                   help="|".join(VIEWS) + "|all (all: one sub-folder per view)")
-    r.add_argument("--engine", default=ENGINES[0], choices=ENGINES,
-                   help="cycles (CPU; SVM for the node group) or eevee (node group only)")
-    r.add_argument("--pixel-centres", action="store_true",
-                   help="every view as one sample at each pixel centre, like the term views "
-                        "(exact per-pixel values, no anti-aliasing; OSL or node group)")
+    r.add_argument(
+        "--view", default="full", help="|".join(VIEWS) + "|all (all: one sub-folder per view)"
+    )
+    r.add_argument(
+        "--engine",
+        default=ENGINES[0],
+        choices=ENGINES,
+        help="cycles (CPU; SVM for the node group) or eevee (node group only)",
+    )
+    r.add_argument(
+        "--pixel-centres",
+        action="store_true",
+        help="every view as one sample at each pixel centre, like the term views "
+        "(exact per-pixel values, no anti-aliasing; OSL or node group)",
+    )
     add_scene_arguments(r)
     r.set_defaults(func=cmd_render)
     c = sub.add_parser("compare", help="compare two render folders")
@@ -488,36 +679,65 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("dir_b")
     c.add_argument("--out", required=True, help="output folder for metrics.json and diff.png")
     c.set_defaults(func=cmd_compare)
-    b = sub.add_parser("bake", help="bake an HDRI's split-sum files (pre-filtered levels, "
-                                    "irradiance, DFG tables), cached by content hash")
+    b = sub.add_parser(
+        "bake",
+        help="bake an HDRI's split-sum files (pre-filtered levels, "
+        "irradiance, DFG tables), cached by content hash",
+    )
     b.add_argument("hdri", help="equirectangular float HDRI (.exr, .hdr)")
     b.add_argument("--out", default=None, help="also copy the files into this folder")
     b.set_defaults(func=cmd_bake)
     m = sub.add_parser("matrix", help="the main job: Cook-Torrance vs Principled, with a report")
-    m.add_argument("--out", default=None,
-                   help="output folder (default out/matrix; out/parity with --parity)")
-    m.add_argument("--parity", action="store_true",
-                   help="the Principled-parity check instead: metallic spheres, Smith G, "
-                        "Lambert, reference IBL, Sun off, against Principled's single-scatter "
-                        "GGX, for each of --parity-hdris (or --hdri)")
-    m.add_argument("--parity-hdris", default=",".join(pipeline.PARITY_HDRIS),
-                   help="Blender's bundled HDRIs for --parity (default: %(default)s)")
-    m.add_argument("--workers", type=int, default=1,
-                   help="render tasks as this many local processes (default 1: in this one)")
+    m.add_argument(
+        "--out", default=None, help="output folder (default out/matrix; out/parity with --parity)"
+    )
+    m.add_argument(
+        "--parity",
+        action="store_true",
+        help="the Principled-parity check instead: metallic spheres, Smith G, "
+        "Lambert, reference IBL, Sun off, against Principled's single-scatter "
+        "GGX, for each of --parity-hdris (or --hdri)",
+    )
+    m.add_argument(
+        "--parity-hdris",
+        default=",".join(pipeline.PARITY_HDRIS),
+        help="Blender's bundled HDRIs for --parity (default: %(default)s)",
+    )
+    m.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="render tasks as this many local processes (default 1: in this one)",
+    )
     add_scene_arguments(m)
     m.set_defaults(func=cmd_matrix)
-    pl = sub.add_parser("plan", help="write a batch job's task graph (JOB/plan.json) for "
-                                     "'ctlab task' and 'ctlab merge', or a render farm")
-    pl.add_argument("job", choices=("matrix", "parity"),
-                    help="matrix (the main job; --parity for the parity job) or parity")
+    pl = sub.add_parser(
+        "plan",
+        help="write a batch job's task graph (JOB/plan.json) for "
+        "'ctlab task' and 'ctlab merge', or a render farm",
+    )
+    pl.add_argument(
+        "job",
+        choices=("matrix", "parity"),
+        help="matrix (the main job; --parity for the parity job) or parity",
+    )
     pl.add_argument("--out", required=True, help="the job folder")
-    pl.add_argument("--openjd", action="store_true",
-                    help="also write an Open Job Description bundle, JOB/openjd/template.json")
-    pl.add_argument("--flamenco", action="store_true",
-                    help="also write a Flamenco job type, JOB/flamenco/ctlab-<job>.js")
+    pl.add_argument(
+        "--openjd",
+        action="store_true",
+        help="also write an Open Job Description bundle, JOB/openjd/template.json",
+    )
+    pl.add_argument(
+        "--flamenco",
+        action="store_true",
+        help="also write a Flamenco job type, JOB/flamenco/ctlab-<job>.js",
+    )
     pl.add_argument("--parity", action="store_true", help="the Principled-parity job")
-    pl.add_argument("--parity-hdris", default=",".join(pipeline.PARITY_HDRIS),
-                    help="Blender's bundled HDRIs for the parity job (default: %(default)s)")
+    pl.add_argument(
+        "--parity-hdris",
+        default=",".join(pipeline.PARITY_HDRIS),
+        help="Blender's bundled HDRIs for the parity job (default: %(default)s)",
+    )
     add_scene_arguments(pl)
     pl.set_defaults(func=cmd_plan)
     t = sub.add_parser("task", help="run one task of a planned job (done already: nothing)")
@@ -525,62 +745,121 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("task_id", help="a task id of plan.json")
     t.add_argument("--verbose", action="store_true", help="show Blender's own output")
     t.set_defaults(func=cmd_task)
-    mg = sub.add_parser("merge", help="compare, plot and write the report of a planned job "
-                                      "whose render tasks are done")
+    mg = sub.add_parser(
+        "merge",
+        help="compare, plot and write the report of a planned job whose render tasks are done",
+    )
     mg.add_argument("job_dir", help="the job folder (plan.json)")
     mg.add_argument("--verbose", action="store_true", help="show Blender's own output")
     mg.set_defaults(func=cmd_merge)
-    p = sub.add_parser("plot", help="the BRDF plotted from the model's own code: the "
-                                    "theta_h x theta_d slice, lobes and directional albedo")
+    p = sub.add_parser(
+        "plot",
+        help="the BRDF plotted from the model's own code: the "
+        "theta_h x theta_d slice, lobes and directional albedo",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--metallic", type=ascii_float, default=0.0, help="0 to 1 (default 0)")
     p.add_argument("--smoothness", type=ascii_float, default=0.5, help="0 to 1 (default 0.5)")
-    p.add_argument("--albedo", default=",".join(map(str, DEFAULT_ALBEDO)),
-                   help="R,G,B linear albedo, each 0 to 1 (default %(default)s)")
+    p.add_argument(
+        "--albedo",
+        default=",".join(map(str, DEFAULT_ALBEDO)),
+        help="R,G,B linear albedo, each 0 to 1 (default %(default)s)",
+    )
     p.add_argument("--g", dest="g_model", default=G_MODELS[0], help="|".join(G_MODELS))
-    p.add_argument("--diffuse", dest="diffuse_model", default=DIFFUSE_MODELS[0],
-                   help="|".join(DIFFUSE_MODELS))
+    p.add_argument(
+        "--diffuse", dest="diffuse_model", default=DIFFUSE_MODELS[0], help="|".join(DIFFUSE_MODELS)
+    )
     p.add_argument("--units", default=UNITS[0], help="|".join(UNITS))
     p.add_argument("--energy", default=ENERGY_MODES[0], help="|".join(ENERGY_MODES))
-    p.add_argument("--shader", default="osl", choices=IMPLEMENTATIONS,
-                   help="the implementation that evaluates the model (default osl)")
-    p.add_argument("--view", action="append", default=None,
-                   help="also slice these term views (comma list, repeatable): "
-                        "D, F, G, specular_brdf, diffuse_brdf, NdotL, NdotV, NdotH, VdotH")
-    p.add_argument("--compare", action="append", default=None,
-                   help="overlay a variant: KEY=VALUE with KEY g, diffuse or energy (comma "
-                        "list, repeatable), e.g. g=smith_ggx_correlated,g=unity_smith_joint")
+    p.add_argument(
+        "--shader",
+        default="osl",
+        choices=IMPLEMENTATIONS,
+        help="the implementation that evaluates the model (default osl)",
+    )
+    p.add_argument(
+        "--view",
+        action="append",
+        default=None,
+        help="also slice these term views (comma list, repeatable): "
+        "D, F, G, specular_brdf, diffuse_brdf, NdotL, NdotV, NdotH, VdotH",
+    )
+    p.add_argument(
+        "--compare",
+        action="append",
+        default=None,
+        help="overlay a variant: KEY=VALUE with KEY g, diffuse or energy (comma "
+        "list, repeatable), e.g. g=smith_ggx_correlated,g=unity_smith_joint",
+    )
     p.add_argument("--verbose", action="store_true", help="show Blender's own output")
     p.set_defaults(func=cmd_plot)
-    s = sub.add_parser("scene", help="a .blend's own scene through its camera: its "
-                                     "Cook-Torrance materials against Principled BSDF "
-                                     "conversions, per material (never saved)")
+    s = sub.add_parser(
+        "scene",
+        help="a .blend's own scene through its camera: its "
+        "Cook-Torrance materials against Principled BSDF "
+        "conversions, per material (never saved)",
+    )
     s.add_argument("blend", help="the .blend file (opened, never written)")
     s.add_argument("--out", required=True, help="output folder")
-    s.add_argument("--convert", action="store_true",
-                   help="the other way: the scene's Principled materials converted to the "
-                        "model, the originals as the reference")
-    s.add_argument("--light-transport", dest="light_transport", default="scene",
-                   choices=LIGHT_TRANSPORTS, help="for the model materials (default scene: "
-                                                  "Cycles path traces the model's closures)")
-    s.add_argument("--shader", default=None, choices=IMPLEMENTATIONS,
-                   help="the model's implementation (default: each material's own; osl "
-                        "with --convert)")
-    s.add_argument("--g", dest="g_model", default=None, choices=G_MODELS,
-                   help="G for every model material (default: each material's own)")
-    s.add_argument("--diffuse", dest="diffuse_model", default=None, choices=DIFFUSE_MODELS,
-                   help="diffuse for every model material (default: each material's own)")
-    s.add_argument("--energy", default=None, choices=ENERGY_MODES,
-                   help="energy for every model material (default: each material's own)")
-    s.add_argument("--principled-distribution", dest="principled_distribution",
-                   default=None, choices=("auto", "GGX", "MULTI_GGX"),
-                   help="the conversions' GGX (default auto: GGX, the model's single "
-                        "scattering; MULTI_GGX for energy compensated)")
-    s.add_argument("--size", type=ascii_int, default=256,
-                   help="the longer image side in pixels (the camera's aspect is kept; "
-                        "default %(default)s)")
-    s.add_argument("--samples", type=ascii_int, default=64,
-                   help="samples per pixel, both renders (default %(default)s)")
+    s.add_argument(
+        "--convert",
+        action="store_true",
+        help="the other way: the scene's Principled materials converted to the "
+        "model, the originals as the reference",
+    )
+    s.add_argument(
+        "--light-transport",
+        dest="light_transport",
+        default="scene",
+        choices=LIGHT_TRANSPORTS,
+        help="for the model materials (default scene: Cycles path traces the model's closures)",
+    )
+    s.add_argument(
+        "--shader",
+        default=None,
+        choices=IMPLEMENTATIONS,
+        help="the model's implementation (default: each material's own; osl with --convert)",
+    )
+    s.add_argument(
+        "--g",
+        dest="g_model",
+        default=None,
+        choices=G_MODELS,
+        help="G for every model material (default: each material's own)",
+    )
+    s.add_argument(
+        "--diffuse",
+        dest="diffuse_model",
+        default=None,
+        choices=DIFFUSE_MODELS,
+        help="diffuse for every model material (default: each material's own)",
+    )
+    s.add_argument(
+        "--energy",
+        default=None,
+        choices=ENERGY_MODES,
+        help="energy for every model material (default: each material's own)",
+    )
+    s.add_argument(
+        "--principled-distribution",
+        dest="principled_distribution",
+        default=None,
+        choices=("auto", "GGX", "MULTI_GGX"),
+        help="the conversions' GGX (default auto: GGX, the model's single "
+        "scattering; MULTI_GGX for energy compensated)",
+    )
+    s.add_argument(
+        "--size",
+        type=ascii_int,
+        default=256,
+        help="the longer image side in pixels (the camera's aspect is kept; default %(default)s)",
+    )
+    s.add_argument(
+        "--samples",
+        type=ascii_int,
+        default=64,
+        help="samples per pixel, both renders (default %(default)s)",
+    )
     s.add_argument("--seed", type=ascii_int, default=0, help="the renders' seed (default 0)")
     s.add_argument("--camera", default=None, help="a camera object (default: the scene's)")
     s.add_argument("--verbose", action="store_true", help="show Blender's own output")
@@ -595,8 +874,18 @@ def fill_defaults(args, defaults: dict) -> None:
 
 
 VALUE_FLAGS = {a.flag for a in SCENE_ARGS if not a.flag_only} | {
-    "--out", "--view", "--engine", "--shader", "--parity-hdris", "--metallic", "--smoothness",
-    "--compare", "--camera", "--seed", "--workers"}
+    "--out",
+    "--view",
+    "--engine",
+    "--shader",
+    "--parity-hdris",
+    "--metallic",
+    "--smoothness",
+    "--compare",
+    "--camera",
+    "--seed",
+    "--workers",
+}
 
 
 def main(argv_=None) -> int:
@@ -605,13 +894,13 @@ def main(argv_=None) -> int:
     try:
         try:
             args = parser.parse_args(join_negative_values(argv_, VALUE_FLAGS))
-        except SystemExit as exc:               # --help
+        except SystemExit as exc:  # --help
             return EXIT_BAD_INPUT if exc.code else 0
         if args.command != "plan":
             fill_defaults(args, PARITY_DEFAULTS if getattr(args, "parity", False) else DEFAULTS)
         args.func(args)
     except UserError as exc:
-        one_line = " ".join(str(exc).split())          # a library's message may hold newlines
+        one_line = " ".join(str(exc).split())  # a library's message may hold newlines
         print(f"ctlab: error: {one_line}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
     except (Cancelled, KeyboardInterrupt):

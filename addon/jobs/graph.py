@@ -46,17 +46,26 @@ def ctlab_version() -> str:
 
 def environment() -> dict:
     """What every task id includes besides its settings: the versions that change a render."""
-    return {"ctlab": ctlab_version(), "ibl_tables": ibl_bake.VERSION,
-            "plan": jobgraph.PLAN_VERSION, "blender": bpy.app.version_string}
+    return {
+        "ctlab": ctlab_version(),
+        "ibl_tables": ibl_bake.VERSION,
+        "plan": jobgraph.PLAN_VERSION,
+        "blender": bpy.app.version_string,
+    }
 
 
 # ----------------------------------------------------------------------------------------
 # The jobs' render folders, from their spec
 
+
 def matrix_labels() -> dict:
     labels = {folder: label for folder, label, *_ in pipeline.MATRIX_RENDERS}
-    labels.update({folder: f"White furnace, {pipeline.furnace_label(g, e)}"
-                   for folder, g, e in pipeline.FURNACE_RENDERS})
+    labels.update(
+        {
+            folder: f"White furnace, {pipeline.furnace_label(g, e)}"
+            for folder, g, e in pipeline.FURNACE_RENDERS
+        }
+    )
     return labels
 
 
@@ -67,8 +76,9 @@ def renders_of(job: str, spec: dict) -> dict:
         return pipeline.matrix_settings(base)
     if job == "parity":
         out = {}
-        for name, ct, pr in pipeline.parity_runs(base, [Path(h) for h in spec["hdris"]],
-                                                 spec.get("name")):
+        for name, ct, pr in pipeline.parity_runs(
+            base, [Path(h) for h in spec["hdris"]], spec.get("name")
+        ):
             out[f"{name}/cook_torrance"], out[f"{name}/principled"] = ct, pr
         return out
     raise UserError(f"unknown job {job!r} in the plan; this ctlab plans: {', '.join(JOBS)}")
@@ -81,8 +91,10 @@ def _hdri_hash(path: Path) -> str:
     try:
         st = path.stat()
     except OSError:
-        raise UserError(f"HDRI not found: {path} (the plan names it; on another machine it "
-                        "must be at the same path, or plan the job there)") from None
+        raise UserError(
+            f"HDRI not found: {path} (the plan names it; on another machine it "
+            "must be at the same path, or plan the job there)"
+        ) from None
     key = (str(path), st.st_size, st.st_mtime_ns)
     if key not in _HASHES:
         _HASHES[key] = file_hash(path)
@@ -96,14 +108,19 @@ def task_content(settings: MatrixSettings, samples: int, env: dict) -> dict:
     hdri = resolve_hdri(settings.hdri)
     data["hdri"] = ""
     data.pop("lights_file", None)
-    return {"settings": data, "samples": samples, "environment": env,
-            "inputs": {"hdri": _hdri_hash(hdri)}}
+    return {
+        "settings": data,
+        "samples": samples,
+        "environment": env,
+        "inputs": {"hdri": _hdri_hash(hdri)},
+    }
 
 
 def merge_outputs(job: str, spec: dict) -> tuple:
     if job == "matrix":
-        return ("report.html",) + tuple(f"{c}/metrics.json" for c, *_ in
-                                        pipeline.MATRIX_COMPARISONS)
+        return ("report.html",) + tuple(
+            f"{c}/metrics.json" for c, *_ in pipeline.MATRIX_COMPARISONS
+        )
     return ("report.html",)
 
 
@@ -123,23 +140,26 @@ def make_plan(job: str, base: MatrixSettings, samples: int, **extra) -> dict:
         spec.update(hdris=[str(h) for h in extra["hdris"]], name=extra.get("name"))
     env = environment()
     for path in {resolve_hdri(s.hdri) for s in renders_of(job, spec).values()}:
-        load_hdri(path)                          # every input checked before anything
-    tasks = [jobgraph.render_task(folder, task_content(s, samples, env),
-                                  renderer.OUTPUT_FILES)
-             for folder, s in renders_of(job, spec).items()]
+        load_hdri(path)  # every input checked before anything
+    tasks = [
+        jobgraph.render_task(folder, task_content(s, samples, env), renderer.OUTPUT_FILES)
+        for folder, s in renders_of(job, spec).items()
+    ]
     return jobgraph.make_plan(job, spec, env, tasks, merge_outputs(job, spec))
 
 
-def write_plan(job_dir: Path, plan: dict, openjd: bool = False, replace: bool = False,
-               flamenco: bool = False) -> None:
+def write_plan(
+    job_dir: Path, plan: dict, openjd: bool = False, replace: bool = False, flamenco: bool = False
+) -> None:
     """JOB/plan.json (with ``openjd`` JOB/openjd/template.json, with ``flamenco``
     JOB/flamenco/ctlab-<job>.js). ``replace``: the job
     run in one process takes the folder over, as it always wrote over its renders."""
     # no input is an output of the job, and none of those is blocked or in the cache
     for folder, settings in renders_of(plan["job"], plan["spec"]).items():
         pipeline.refuse_job_outputs(settings, job_dir, [folder])
-    pipeline.refuse_job_outputs(settings_from_dict(plan["spec"]["base"]), job_dir, [],
-                                plan_merge_outputs(plan))
+    pipeline.refuse_job_outputs(
+        settings_from_dict(plan["spec"]["base"]), job_dir, [], plan_merge_outputs(plan)
+    )
     check_writable(job_dir)
     if replace:
         jobgraph.plan_path(job_dir).unlink(missing_ok=True)
@@ -153,16 +173,24 @@ def write_plan(job_dir: Path, plan: dict, openjd: bool = False, replace: bool = 
 # ----------------------------------------------------------------------------------------
 # One task
 
+
 def _checked(job_dir: Path, plan: dict, task: dict) -> MatrixSettings:
     """The task's settings rebuilt by this version; its id must come out the same."""
     renders = renders_of(plan["job"], plan["spec"])
     s = renders.get(task["folder"])
-    if s is None or jobgraph.content_id(task["folder"], task_content(
-            s, plan["spec"]["samples"], environment())) != task["id"]:
-        raise UserError(f"task {task['id']} was planned by another version or with other "
-                        f"settings (ctlab {plan.get('environment', {}).get('ctlab')}, Blender "
-                        f"{plan.get('environment', {}).get('blender')}); plan the job again "
-                        "into an empty folder")
+    if (
+        s is None
+        or jobgraph.content_id(
+            task["folder"], task_content(s, plan["spec"]["samples"], environment())
+        )
+        != task["id"]
+    ):
+        raise UserError(
+            f"task {task['id']} was planned by another version or with other "
+            f"settings (ctlab {plan.get('environment', {}).get('ctlab')}, Blender "
+            f"{plan.get('environment', {}).get('blender')}); plan the job again "
+            "into an empty folder"
+        )
     return s
 
 
@@ -193,27 +221,35 @@ def run_task(job_dir: Path, task_id: str, events=None, verbose: bool = False) ->
         return {"ran": False, "seconds": 0.0}
     started = process_age()
     start = time.perf_counter()
-    scene = pipeline.render_one(s, job_dir / task["folder"], plan["spec"]["samples"],
-                                verbose=verbose, events=events)
+    scene = pipeline.render_one(
+        s, job_dir / task["folder"], plan["spec"]["samples"], verbose=verbose, events=events
+    )
     # the task's time split for the benchmark: process start-up, scene build and saving,
     # Cycles' synchronisation (the shader compile), Cycles' render
-    jobgraph.mark_done(job_dir, task, {
-        "process_start_seconds": started, "pid": os.getpid(),
-        "task_seconds": round(time.perf_counter() - start, 3),
-        **{k: scene.get(k) for k in ("render_seconds", "sync_seconds",
-                                     "cycles_render_seconds")}})
+    jobgraph.mark_done(
+        job_dir,
+        task,
+        {
+            "process_start_seconds": started,
+            "pid": os.getpid(),
+            "task_seconds": round(time.perf_counter() - start, 3),
+            **{
+                k: scene.get(k) for k in ("render_seconds", "sync_seconds", "cycles_render_seconds")
+            },
+        },
+    )
     return {"ran": True, "seconds": time.perf_counter() - start, "scene": scene}
 
 
 # ----------------------------------------------------------------------------------------
 # The merge
 
+
 def _scene(job_dir: Path, folder: str) -> dict:
     return json.loads((Path(job_dir) / folder / "scene.json").read_text(encoding="utf-8"))
 
 
-def merge(job_dir: Path, events=None, verbose: bool = False,
-          steps: int | None = None) -> dict:
+def merge(job_dir: Path, events=None, verbose: bool = False, steps: int | None = None) -> dict:
     """``ctlab merge JOB``: every render task checked (one line naming those to re-run),
     then the comparisons, plots and report from the job folder alone, under the merge lock."""
     events = events or pipeline.Events()
@@ -235,25 +271,37 @@ def _merge_matrix(out, plan, base, events, verbose, steps) -> dict:
     timings = {labels[f]: scenes[f]["render_seconds"] for f in folders}
     events.check()
     events.progress(steps - 1, steps, "comparing; the BRDF plots")
-    results = {cmp_dir: compare(out / a, out / b, out / cmp_dir)
-               for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS}
-    furnace = {pipeline.furnace_label(g, e): energy.directional_albedo(
-        read_image(out / folder / "render.exr"), scenes[folder])
-        for folder, g, e in pipeline.FURNACE_RENDERS}
+    results = {
+        cmp_dir: compare(out / a, out / b, out / cmp_dir)
+        for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS
+    }
+    furnace = {
+        pipeline.furnace_label(g, e): energy.directional_albedo(
+            read_image(out / folder / "render.exr"), scenes[folder]
+        )
+        for folder, g, e in pipeline.FURNACE_RENDERS
+    }
     plots = []
     for name, label, plot in pipeline.report_plots(base):
         events.check()
         events.note(f"BRDF plot: {label}")
         inner = pipeline.Events(note=pipeline._nothing, cancelled=events.cancelled)
-        plots.append((label, f"plots/{name}",
-                      pipeline.run_plot(plot, out / "plots" / name, inner, verbose)))
+        plots.append(
+            (label, f"plots/{name}", pipeline.run_plot(plot, out / "plots" / name, inner, verbose))
+        )
     events.progress(steps, steps, "writing the report")
-    report = write_report(out, [(a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
-                                for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS[:5]],
-                          scenes["cook_torrance"], timings,
-                          attribution=[(s[1], results[s[0]], *s[2:])
-                                       for s in pipeline.ATTRIBUTION],
-                          furnace=furnace, plots=plots)
+    report = write_report(
+        out,
+        [
+            (a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
+            for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS[:5]
+        ],
+        scenes["cook_torrance"],
+        timings,
+        attribution=[(s[1], results[s[0]], *s[2:]) for s in pipeline.ATTRIBUTION],
+        furnace=furnace,
+        plots=plots,
+    )
     return {"job": "matrix", "report": report, "comparisons": results}
 
 
@@ -263,26 +311,40 @@ def _merge_parity(out, plan, events, steps) -> dict:
     entries = []
     for name in names:
         events.check()
-        result = compare(out / name / "cook_torrance", out / name / "principled",
-                         out / name / "compare")
+        result = compare(
+            out / name / "cook_torrance", out / name / "principled", out / name / "compare"
+        )
         worst = max(c["ciede2000_mean"] for c in result["cells"])
-        events.note(f"{name}: mean CIEDE2000 {result['overall']['ciede2000_mean']:.2f}, "
-                    f"worst sphere {worst:.2f} (bound {pipeline.PARITY_BOUND})")
+        events.note(
+            f"{name}: mean CIEDE2000 {result['overall']['ciede2000_mean']:.2f}, "
+            f"worst sphere {worst:.2f} (bound {pipeline.PARITY_BOUND})"
+        )
         entries.append((name, result, _scene(out, f"{name}/cook_torrance")))
     events.progress(steps, steps, "writing the report")
     report = write_parity_report(out, entries, pipeline.PARITY_BOUND)
-    holds = all(max(c["ciede2000_mean"] for c in r["cells"]) <= pipeline.PARITY_BOUND
-                for _, r, _ in entries)
-    return {"job": "parity", "holds": holds, "report": report,
-            "comparisons": {n: r for n, r, _ in entries}}
+    holds = all(
+        max(c["ciede2000_mean"] for c in r["cells"]) <= pipeline.PARITY_BOUND for _, r, _ in entries
+    )
+    return {
+        "job": "parity",
+        "holds": holds,
+        "report": report,
+        "comparisons": {n: r for n, r, _ in entries},
+    }
 
 
 # ----------------------------------------------------------------------------------------
 # The jobs, run here
 
-def run_matrix(base: MatrixSettings, samples: int, out: Path,
-               events: pipeline.Events | None = None, verbose: bool = False,
-               workers: int = 1) -> dict:
+
+def run_matrix(
+    base: MatrixSettings,
+    samples: int,
+    out: Path,
+    events: pipeline.Events | None = None,
+    verbose: bool = False,
+    workers: int = 1,
+) -> dict:
     """The main job: the OSL shader against Principled BSDF, the baked IBL modes against the
     reference integration, the node group against the OSL shader, the attribution and the
     white furnace, compared cell by cell, with report.html. Returns the comparisons. Its
@@ -296,9 +358,16 @@ def run_matrix(base: MatrixSettings, samples: int, out: Path,
     return run_graph(plan, out, events, verbose, workers)
 
 
-def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
-               events: pipeline.Events | None = None, verbose: bool = False,
-               name: str | None = None, workers: int = 1) -> dict:
+def run_parity(
+    base: MatrixSettings,
+    hdris: list,
+    samples: int,
+    out: Path,
+    events: pipeline.Events | None = None,
+    verbose: bool = False,
+    name: str | None = None,
+    workers: int = 1,
+) -> dict:
     """With Smith G, Lambert diffuse, metallic 1, the Sun off and no sphere shadowing another,
     the model is Principled BSDF's single-scatter GGX metal, so our reference integration and
     Cycles' path tracer must agree up to noise: both rendered under each HDRI (and the base's
@@ -316,14 +385,17 @@ def run_parity(base: MatrixSettings, hdris: list, samples: int, out: Path,
 # ----------------------------------------------------------------------------------------
 # The whole graph: in this process, or render tasks as local worker processes
 
+
 def _describe(plan: dict, task: dict) -> str:
     s = settings_from_dict(plan["spec"]["base"])
     samples = plan["spec"]["samples"]
     folder = task["folder"]
     if plan["job"] == "matrix":
         r = pipeline.matrix_settings(s)[folder]
-        return (f"{matrix_labels()[folder]}: grid {r.rows}x{r.cols}, {r.width}x{r.height} px, "
-                f"{samples} samples")
+        return (
+            f"{matrix_labels()[folder]}: grid {r.rows}x{r.cols}, {r.width}x{r.height} px, "
+            f"{samples} samples"
+        )
     name, what = folder.split("/")
     return f"{name}: {what}, grid {s.rows}x{s.cols}, {s.width} px, {samples} samples"
 
@@ -332,8 +404,9 @@ def task_command(job_dir: Path, task_id: str) -> list:
     return [sys.executable, str(CTLAB_SCRIPT), "task", str(job_dir), task_id]
 
 
-def run_graph(plan: dict, job_dir: Path, events=None, verbose: bool = False,
-              workers: int = 1) -> dict:
+def run_graph(
+    plan: dict, job_dir: Path, events=None, verbose: bool = False, workers: int = 1
+) -> dict:
     """Every render task not done yet (in this process, or ``workers`` processes running
     ``ctlab task``), then the merge. Progress: one step per render task, the merge's last."""
     events = events or pipeline.Events()
@@ -365,8 +438,9 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
             while pending and len(running) < workers and not failed:
                 task = pending.pop(0)
                 log = open(logs / (task["folder"].replace("/", "__") + ".log"), "w")
-                proc = subprocess.Popen(task_command(job_dir, task["id"]), stdout=log,
-                                        stderr=subprocess.STDOUT, env=env)
+                proc = subprocess.Popen(
+                    task_command(job_dir, task["id"]), stdout=log, stderr=subprocess.STDOUT, env=env
+                )
                 running[proc] = (task, log, time.perf_counter())
             if failed and not running:
                 break
@@ -378,10 +452,14 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
                     failed.append((task, proc.returncode))
                     continue
                 finished += 1
-                events.progress(finished, steps, f"{_describe(plan, task)} "
-                                f"({time.perf_counter() - start:.1f} s, worker process)")
+                events.progress(
+                    finished,
+                    steps,
+                    f"{_describe(plan, task)} "
+                    f"({time.perf_counter() - start:.1f} s, worker process)",
+                )
     finally:
-        for proc, (task, log, _) in running.items():
+        for proc in running:
             proc.terminate()
             proc.wait()
             log.close()
@@ -391,5 +469,7 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
         log = logs / (task["folder"].replace("/", "__") + ".log")
         lines = [ln for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
         tail = f": {lines[-1]}" if lines else ""
-        raise UserError(f"task {task['id']} ({task['folder']}) failed (exit {code}){tail}; "
-                        f"re-run: ctlab task {job_dir} {task['id']} (log: {log})")
+        raise UserError(
+            f"task {task['id']} ({task['folder']}) failed (exit {code}){tail}; "
+            f"re-run: ctlab task {job_dir} {task['id']} (log: {log})"
+        )

@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 import bpy
 
@@ -28,17 +28,16 @@ from ..core.model import BAKED_IBL_MODES, G_MODELS
 from ..core.settings import MatrixSettings, with_overrides
 
 
-
 def _nothing(*_args) -> None:
     return None
 
 
 @dataclass
 class Events:
-    progress: Callable = _nothing           # (step, total, message), before each step
-    note: Callable = _nothing               # (message), within a step
-    cancelled: Callable = lambda: False     # polled between steps
-    warn: Callable = _nothing               # (message), something left alone or repaired
+    progress: Callable = _nothing  # (step, total, message), before each step
+    note: Callable = _nothing  # (message), within a step
+    cancelled: Callable = lambda: False  # polled between steps
+    warn: Callable = _nothing  # (message), something left alone or repaired
 
     def check(self) -> None:
         if self.cancelled():
@@ -51,34 +50,55 @@ class Events:
 # ----------------------------------------------------------------------------------------
 # Renders
 
-def render_views(settings: MatrixSettings, out_dirs: dict, samples: int, *,
-                 pixel_centres: bool = False, engine: str = "cycles", verbose: bool = False,
-                 events: Events | None = None, on_view=None) -> dict:
+
+def render_views(
+    settings: MatrixSettings,
+    out_dirs: dict,
+    samples: int,
+    *,
+    pixel_centres: bool = False,
+    engine: str = "cycles",
+    verbose: bool = False,
+    events: Events | None = None,
+    on_view=None,
+) -> dict:
     """Build the matrix once in a fresh empty scene and render each view into its folder
     (``{view: folder}``); the shader compiles once. ``on_view(i, view, description)`` follows
     each render. Returns the last scene description. ``pixel_centres``: every view as one
     sample at each pixel centre (no anti-aliasing)."""
     events = events or Events()
     for out_dir in out_dirs.values():
-        refuse_overwrite(job_inputs(settings), [Path(out_dir) / name
-                                                for name in renderer.OUTPUT_FILES], [out_dir])
+        refuse_overwrite(
+            job_inputs(settings),
+            [Path(out_dir) / name for name in renderer.OUTPUT_FILES],
+            [out_dir],
+        )
         check_writable(out_dir)
     files = scene_builder.environment_files(settings, events.bake_progress)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     description = scene_builder.build_matrix(scene, settings, files)
-    node = next(filter(None, (model_node.find(m) for m in bpy.data.materials
-                              if m.get(scene_builder.TAG))), None)
-    log = None if verbose else os.devnull      # Blender's own per-tile lines
+    node = next(
+        filter(None, (model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))),
+        None,
+    )
+    log = None if verbose else os.devnull  # Blender's own per-tile lines
     for i, (view, out_dir) in enumerate(out_dirs.items()):
         events.check()
         model = settings.model_options(view=view)
         description["model"] = model.as_dict()
         if node is not None:
             model_node.set_options(node, model)
-        renderer.configure(scene, settings.shader, view, samples, model.seed, pixel_centres,
-                           engine, path_traced=settings.shader != "principled"
-                           and model.path_traced())
+        renderer.configure(
+            scene,
+            settings.shader,
+            view,
+            samples,
+            model.seed,
+            pixel_centres,
+            engine,
+            path_traced=settings.shader != "principled" and model.path_traced(),
+        )
         description = renderer.render(scene, out_dir, description, log)
         if on_view:
             on_view(i, view, description)
@@ -95,9 +115,11 @@ def refuse_job_outputs(settings: MatrixSettings, out: Path, folders, names=()) -
     render folders (and ``names`` in ``out``), and none of those is blocked or in the cache
     (core.paths.check_job)."""
     out = Path(out)
-    refuse_overwrite(job_inputs(settings),
-                     [out / f / n for f in folders for n in renderer.OUTPUT_FILES]
-                     + [out / n for n in names], [out])
+    refuse_overwrite(
+        job_inputs(settings),
+        [out / f / n for f in folders for n in renderer.OUTPUT_FILES] + [out / n for n in names],
+        [out],
+    )
 
 
 def render_one(settings: MatrixSettings, out_dir: Path, samples: int, **kw) -> dict:
@@ -116,41 +138,70 @@ MATRIX_RENDERS = (
     ("principled", "Principled BSDF", "principled", "reference", {}),
     ("split_sum", "Cook-Torrance (OSL, split-sum IBL)", "osl", "split_sum", {}),
     ("unity", "Cook-Torrance (OSL, Unity IBL)", "osl", "unity", {}),
-    ("split_sum_corrected", "Cook-Torrance (OSL, split-sum toward the dominant direction)",
-     "osl", "split_sum_corrected", {}),
+    (
+        "split_sum_corrected",
+        "Cook-Torrance (OSL, split-sum toward the dominant direction)",
+        "osl",
+        "split_sum_corrected",
+        {},
+    ),
     ("nodes", "Cook-Torrance (node group, split-sum IBL)", "nodes", "split_sum", {}),
     ("attr_smith", "Cook-Torrance with Smith G", "osl", "reference", SMITH),
-    ("attr_smith_lambert", "Cook-Torrance with Smith G and Lambert diffuse", "osl", "reference",
-     dict(SMITH, diffuse_model="lambert")),
-    ("attr_principled_ggx", "Principled BSDF (single-scatter GGX)", "principled", "reference",
-     {"principled_distribution": "GGX"}),
-    ("attr_compensated", "Cook-Torrance with Smith G, Lambert diffuse and energy compensation",
-     "osl", "reference", dict(SMITH, diffuse_model="lambert", energy="compensated")))
+    (
+        "attr_smith_lambert",
+        "Cook-Torrance with Smith G and Lambert diffuse",
+        "osl",
+        "reference",
+        dict(SMITH, diffuse_model="lambert"),
+    ),
+    (
+        "attr_principled_ggx",
+        "Principled BSDF (single-scatter GGX)",
+        "principled",
+        "reference",
+        {"principled_distribution": "GGX"},
+    ),
+    (
+        "attr_compensated",
+        "Cook-Torrance with Smith G, Lambert diffuse and energy compensation",
+        "osl",
+        "reference",
+        dict(SMITH, diffuse_model="lambert", energy="compensated"),
+    ),
+)
 # Its comparisons: (folder, render, against). The model against Principled; the baked IBL
 # modes against the reference integration (the accuracy study of the split-sum); the node
 # group against the OSL shader in the same mode (parity); the attribution's steps.
-MATRIX_COMPARISONS = (("compare", "cook_torrance", "principled"),
-                      ("compare_split_sum", "split_sum", "cook_torrance"),
-                      ("compare_unity", "unity", "cook_torrance"),
-                      ("compare_split_sum_corrected", "split_sum_corrected", "cook_torrance"),
-                      ("compare_nodes", "nodes", "split_sum"),
-                      ("compare_attr_smith", "attr_smith", "principled"),
-                      ("compare_attr_smith_lambert", "attr_smith_lambert", "principled"),
-                      ("compare_attr_ggx", "attr_smith_lambert", "attr_principled_ggx"),
-                      ("compare_attr_compensated", "attr_compensated", "principled"))
+MATRIX_COMPARISONS = (
+    ("compare", "cook_torrance", "principled"),
+    ("compare_split_sum", "split_sum", "cook_torrance"),
+    ("compare_unity", "unity", "cook_torrance"),
+    ("compare_split_sum_corrected", "split_sum_corrected", "cook_torrance"),
+    ("compare_nodes", "nodes", "split_sum"),
+    ("compare_attr_smith", "attr_smith", "principled"),
+    ("compare_attr_smith_lambert", "attr_smith_lambert", "principled"),
+    ("compare_attr_ggx", "attr_smith_lambert", "attr_principled_ggx"),
+    ("compare_attr_compensated", "attr_compensated", "principled"),
+)
 # The attribution: the error against Principled after each switch (comparison folder, the
 # switch; the step it follows, where not the one before).
-ATTRIBUTION = (("compare", "seed model"),
-               ("compare_attr_smith", "G: Cook-Torrance to Smith"),
-               ("compare_attr_smith_lambert", "diffuse: Disney to Lambert"),
-               ("compare_attr_ggx", "Principled: multiscatter to single-scatter GGX"),
-               ("compare_attr_compensated",
-                "or instead the model: energy compensated (against multiscatter Principled)",
-                2))
+ATTRIBUTION = (
+    ("compare", "seed model"),
+    ("compare_attr_smith", "G: Cook-Torrance to Smith"),
+    ("compare_attr_smith_lambert", "diffuse: Disney to Lambert"),
+    ("compare_attr_ggx", "Principled: multiscatter to single-scatter GGX"),
+    (
+        "compare_attr_compensated",
+        "or instead the model: energy compensated (against multiscatter Principled)",
+        2,
+    ),
+)
 # The white furnace (core/energy.py): (folder, G model, energy).
-FURNACE_RENDERS = (("furnace_cook_torrance", "cook_torrance", "none"),
-                   ("furnace_smith", "smith_ggx_correlated", "none"),
-                   ("furnace_smith_compensated", "smith_ggx_correlated", "compensated"))
+FURNACE_RENDERS = (
+    ("furnace_cook_torrance", "cook_torrance", "none"),
+    ("furnace_smith", "smith_ggx_correlated", "none"),
+    ("furnace_smith_compensated", "smith_ggx_correlated", "compensated"),
+)
 
 
 def furnace_label(g_model: str, energy_mode: str) -> str:
@@ -160,7 +211,7 @@ def furnace_label(g_model: str, energy_mode: str) -> str:
 def _forget_report(out: Path) -> None:
     """A job writes its report last: remove an earlier run's first, so that a job stopped
     half-way leaves no report showing new images beside old numbers."""
-    forget_report(Path(out) / "report.html")      # only one ctlab wrote (core.files)
+    forget_report(Path(out) / "report.html")  # only one ctlab wrote (core.files)
 
 
 def matrix_settings(base: MatrixSettings) -> dict:
@@ -170,13 +221,18 @@ def matrix_settings(base: MatrixSettings) -> dict:
         # the baked modes are the lab transport's approximations of the reference: with
         # --light-transport scene they stay lab renders (the study of the split-sum, and the
         # node group's parity with the OSL shader in the same mode)
-        transport = "lab" if shader != "principled" and ibl in BAKED_IBL_MODES else \
-            base.model.light_transport
-        settings[folder] = with_overrides(base, dict(overrides, shader=shader, ibl=ibl,
-                                                     view="full", light_transport=transport))
+        transport = (
+            "lab"
+            if shader != "principled" and ibl in BAKED_IBL_MODES
+            else base.model.light_transport
+        )
+        settings[folder] = with_overrides(
+            base, dict(overrides, shader=shader, ibl=ibl, view="full", light_transport=transport)
+        )
     for folder, g_model, energy_mode in FURNACE_RENDERS:
-        settings[folder] = energy.furnace_settings(g_model, base.model.env_samples,
-                                                   base.model.seed, energy_mode)
+        settings[folder] = energy.furnace_settings(
+            g_model, base.model.env_samples, base.model.seed, energy_mode
+        )
     return settings
 
 
@@ -184,22 +240,30 @@ def matrix_settings(base: MatrixSettings) -> dict:
 # The Principled-parity job
 
 PARITY_HDRIS = ("forest", "studio")
-PARITY_BOUND = 1.0            # every sphere's mean CIEDE2000
+PARITY_BOUND = 1.0  # every sphere's mean CIEDE2000
 # (lab: the scene transport's closures for Smith and Lambert are Cycles' own GGX, so parity
 # would hold without testing the model's integration)
-PARITY_MODEL = dict(light_transport="lab", g_model="smith_ggx_correlated",
-                    diffuse_model="lambert", metallic=1.0,
-                    sun_strength=0.0, mutual_shadows=False)
+PARITY_MODEL = dict(
+    light_transport="lab",
+    g_model="smith_ggx_correlated",
+    diffuse_model="lambert",
+    metallic=1.0,
+    sun_strength=0.0,
+    mutual_shadows=False,
+)
 
 
 def parity_hdris(names: str) -> list:
     """Blender's bundled HDRIs named in a comma list."""
     from ..blender.paths import BUNDLED_HDRIS
     from ..core.errors import UserError
+
     chosen = [n.strip() for n in names.split(",") if n.strip()]
     if not chosen or any(n not in BUNDLED_HDRIS for n in chosen):
-        raise UserError(f"unknown bundled HDRI in --parity-hdris {names!r}; choose from: "
-                        + ", ".join(BUNDLED_HDRIS))
+        raise UserError(
+            f"unknown bundled HDRI in --parity-hdris {names!r}; choose from: "
+            + ", ".join(BUNDLED_HDRIS)
+        )
     return [bundled_hdri(n) for n in chosen]
 
 
@@ -208,14 +272,22 @@ def parity_runs(base: MatrixSettings, hdris: list, name: str | None = None) -> l
     run_parity)."""
     jobs = []
     for hdri in hdris:
-        ct = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="osl",
-                                       ibl="reference", view="full"))
+        ct = with_overrides(
+            base, dict(PARITY_MODEL, hdri=str(hdri), shader="osl", ibl="reference", view="full")
+        )
         # with the model's energy compensated, against Principled's own multiple scattering
         multiple = base.model.energy == "compensated"
-        pr = with_overrides(base, dict(PARITY_MODEL, hdri=str(hdri), shader="principled",
-                                       ibl="reference", view="full",
-                                       principled_distribution="MULTI_GGX" if multiple
-                                       else "GGX"))
+        pr = with_overrides(
+            base,
+            dict(
+                PARITY_MODEL,
+                hdri=str(hdri),
+                shader="principled",
+                ibl="reference",
+                view="full",
+                principled_distribution="MULTI_GGX" if multiple else "GGX",
+            ),
+        )
         jobs.append((name if name and len(hdris) == 1 else Path(hdri).stem, ct, pr))
     return jobs
 
@@ -223,30 +295,48 @@ def parity_runs(base: MatrixSettings, hdris: list, name: str | None = None) -> l
 # ----------------------------------------------------------------------------------------
 # BRDF plots
 
-def evaluate_plot(settings: brdf_plot.PlotSettings, events: Events | None = None,
-                  verbose: bool = False) -> dict:
+
+def evaluate_plot(
+    settings: brdf_plot.PlotSettings, events: Events | None = None, verbose: bool = False
+) -> dict:
     """The model of ``settings`` and of each variant (brdf_plot.PlotSettings.variants)
     evaluated by the chosen implementation at every configuration of the plot, in a fresh
     empty scene: {tag: brdf_plot.assemble(...)}, the variants' labels under "labels"."""
     from ..blender.model_eval import Evaluator
+
     events = events or Events()
     lay = brdf_plot.layout(settings)
     variants = settings.variants()
-    base_views = tuple(dict.fromkeys(brdf_plot.BRDF_VIEWS + (brdf_plot.WEIGHT_VIEW,)
-                                     + settings.views))
-    renders = [(tag, view, changes) for tag, _, changes in variants
-               for view in (brdf_plot.BRDF_VIEWS if tag else base_views)]
+    base_views = tuple(
+        dict.fromkeys(brdf_plot.BRDF_VIEWS + (brdf_plot.WEIGHT_VIEW,) + settings.views)
+    )
+    renders = [
+        (tag, view, changes)
+        for tag, _, changes in variants
+        for view in (brdf_plot.BRDF_VIEWS if tag else base_views)
+    ]
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    evaluator = Evaluator(settings.shader, lay.n, lay.l, settings.albedo, settings.metallic,
-                          settings.smoothness, settings.options(), verbose)
+    evaluator = Evaluator(
+        settings.shader,
+        lay.n,
+        lay.l,
+        settings.albedo,
+        settings.metallic,
+        settings.smoothness,
+        settings.options(),
+        verbose,
+    )
     images: dict = {}
     for k, (tag, view, changes) in enumerate(renders):
         events.check()
         events.progress(k + 1, len(renders) + 1, f"{view}" + (f" ({tag})" if tag else ""))
         images.setdefault(tag, {})[view] = evaluator.render(settings.options(view, **changes))
-    results = {tag: brdf_plot.assemble(lay, images[tag], settings.views if not tag else (),
-                                       images[""][brdf_plot.WEIGHT_VIEW])
-               for tag, _, _ in variants}
+    results = {
+        tag: brdf_plot.assemble(
+            lay, images[tag], settings.views if not tag else (), images[""][brdf_plot.WEIGHT_VIEW]
+        )
+        for tag, _, _ in variants
+    }
     results["labels"] = {tag: label for tag, label, _ in variants}
     return results
 
@@ -266,42 +356,58 @@ def report_plots(base: MatrixSettings) -> list:
     for kind, s in zip(("smooth", "rough"), dict.fromkeys(rows)):
         for m in dict.fromkeys((metal[-1], metal[0])):
             what = "metal" if m >= 0.5 else "dielectric"
-            out.append((f"m{m:.2f}_s{s:.2f}", f"{kind} {what}: metallic {m:.2f}, "
-                                               f"smoothness {s:.2f}",
-                        brdf_plot.PlotSettings(
-                            metallic=m, smoothness=s, albedo=base.albedo,
-                            g_model=base.model.g_model, diffuse_model=base.model.diffuse_model,
-                            units=base.model.units, energy=base.model.energy, shader="osl",
-                            compare=compare)))
+            out.append(
+                (
+                    f"m{m:.2f}_s{s:.2f}",
+                    f"{kind} {what}: metallic {m:.2f}, smoothness {s:.2f}",
+                    brdf_plot.PlotSettings(
+                        metallic=m,
+                        smoothness=s,
+                        albedo=base.albedo,
+                        g_model=base.model.g_model,
+                        diffuse_model=base.model.diffuse_model,
+                        units=base.model.units,
+                        energy=base.model.energy,
+                        shader="osl",
+                        compare=compare,
+                    ),
+                )
+            )
     return out
 
 
-def run_plot(settings: brdf_plot.PlotSettings, out: Path, events: Events | None = None,
-             verbose: bool = False) -> dict:
+def run_plot(
+    settings: brdf_plot.PlotSettings, out: Path, events: Events | None = None, verbose: bool = False
+) -> dict:
     """``ctlab plot``: the BRDF's slice, lobes and directional albedo from the model's own
     code, written into ``out`` whole (plot_figures.write_plot). Returns plot.json's data."""
     from ..core import plot_figures
+
     events = events or Events()
-    refuse_overwrite([], [Path(out) / "plot.json"], [out])    # not in the cache
-    plot_figures.refuse_blocked(out, plot_figures.planned_names(settings))   # before renders
+    refuse_overwrite([], [Path(out) / "plot.json"], [out])  # not in the cache
+    plot_figures.refuse_blocked(out, plot_figures.planned_names(settings))  # before renders
     check_writable(out)
     results = evaluate_plot(settings, events, verbose)
     events.check()
     events.note("writing the plots")
-    return plot_figures.write_plot(Path(out), settings, results,
-                                   {"blender": bpy.app.version_string,
-                                    "implementation": settings.shader}, events.warn)
+    return plot_figures.write_plot(
+        Path(out),
+        settings,
+        results,
+        {"blender": bpy.app.version_string, "implementation": settings.shader},
+        events.warn,
+    )
 
 
 # ----------------------------------------------------------------------------------------
 # The bake
 
-def run_bake(hdri: Path, out: Path | None = None, events: Events | None = None,
-             warn=None) -> Path:
+
+def run_bake(hdri: Path, out: Path | None = None, events: Events | None = None, warn=None) -> Path:
     """Bake the split-sum files of an HDRI (cached by content hash); with ``out`` copy them
     there. Returns the folder holding them."""
     events = events or Events()
-    load_hdri(hdri)                           # the HDRI checked before --out is made
+    load_hdri(hdri)  # the HDRI checked before --out is made
     if out:
         refuse_overwrite([hdri], [Path(out) / name for name in ibl_bake.file_names()])
         check_writable(out)

@@ -35,10 +35,24 @@ import numpy as np
 from ..blender import convert, light_sync, model_node, osl_shader, renderer
 from ..core.compare import ciede2000, heatmap, metrics, read_image, srgb_to_lab, write_png
 from ..core.errors import UserError
-from ..core.files import atomic_path, check_writable, forget_report, json_text, \
-    refuse_overwrite, write_json, write_text
-from ..core.model import (DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, IMPLEMENTATIONS,
-                          LIGHT_TRANSPORTS, REC709_LUMINANCE, UNITS)
+from ..core.files import (
+    atomic_path,
+    check_writable,
+    forget_report,
+    json_text,
+    refuse_overwrite,
+    write_json,
+    write_text,
+)
+from ..core.model import (
+    DIFFUSE_MODELS,
+    ENERGY_MODES,
+    G_MODELS,
+    IMPLEMENTATIONS,
+    LIGHT_TRANSPORTS,
+    REC709_LUMINANCE,
+    UNITS,
+)
 from ..core.report import STYLE
 from .pipeline import Events
 
@@ -48,23 +62,32 @@ DISTRIBUTIONS = ("auto", "GGX", "MULTI_GGX")
 HEATMAP_MAX = 10.0
 MAX_SIZE = 16384
 MAX_SAMPLES = 65536
-MAX_SEED = 2 ** 31 - 1
+MAX_SEED = 2**31 - 1
 # The first bytes of a .blend: plain, gzip (before 3.0) or zstd (3.0 and later) compressed.
 BLEND_MAGIC = (b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")
 # Colours of the compared materials in materials.png (others grey, the world black).
-PALETTE = ((0.90, 0.30, 0.25), (0.25, 0.60, 0.95), (0.35, 0.80, 0.35), (0.95, 0.75, 0.20),
-           (0.70, 0.40, 0.85), (0.20, 0.80, 0.80), (0.95, 0.50, 0.70), (0.60, 0.45, 0.25))
+PALETTE = (
+    (0.90, 0.30, 0.25),
+    (0.25, 0.60, 0.95),
+    (0.35, 0.80, 0.35),
+    (0.95, 0.75, 0.20),
+    (0.70, 0.40, 0.85),
+    (0.20, 0.80, 0.80),
+    (0.95, 0.50, 0.70),
+    (0.60, 0.45, 0.25),
+)
 OTHER_GREY = 0.35
 
 
 @dataclass
 class SceneJob:
     """The command's settings, validated by ``check``. None: keep what the file has."""
+
     blend: Path
     out: Path
     convert: bool = False
     light_transport: str = "scene"
-    shader: str | None = None            # osl | nodes (with --convert: default osl)
+    shader: str | None = None  # osl | nodes (with --convert: default osl)
     g_model: str | None = None
     diffuse_model: str | None = None
     energy: str | None = None
@@ -72,33 +95,40 @@ class SceneJob:
     samples: int = 64
     seed: int = 0
     camera: str | None = None
-    principled_distribution: str | None = None    # auto | GGX | MULTI_GGX
+    principled_distribution: str | None = None  # auto | GGX | MULTI_GGX
     verbose: bool = False
     notes: list = field(default_factory=list)
 
     def check(self) -> None:
-        choices = (("--light-transport", self.light_transport, LIGHT_TRANSPORTS),
-                   ("--shader", self.shader, IMPLEMENTATIONS),
-                   ("--g", self.g_model, G_MODELS),
-                   ("--diffuse", self.diffuse_model, DIFFUSE_MODELS),
-                   ("--energy", self.energy, ENERGY_MODES),
-                   ("--principled-distribution", self.principled_distribution, DISTRIBUTIONS))
+        choices = (
+            ("--light-transport", self.light_transport, LIGHT_TRANSPORTS),
+            ("--shader", self.shader, IMPLEMENTATIONS),
+            ("--g", self.g_model, G_MODELS),
+            ("--diffuse", self.diffuse_model, DIFFUSE_MODELS),
+            ("--energy", self.energy, ENERGY_MODES),
+            ("--principled-distribution", self.principled_distribution, DISTRIBUTIONS),
+        )
         for flag, value, values in choices:
             if value is not None and value not in values:
                 raise UserError(f"unknown {flag} {value!r}; choose one of: {', '.join(values)}")
-        for flag, value, lo, hi in (("--size", self.size, 1, MAX_SIZE),
-                                    ("--samples", self.samples, 1, MAX_SAMPLES),
-                                    ("--seed", self.seed, 0, MAX_SEED)):
+        for flag, value, lo, hi in (
+            ("--size", self.size, 1, MAX_SIZE),
+            ("--samples", self.samples, 1, MAX_SAMPLES),
+            ("--seed", self.seed, 0, MAX_SEED),
+        ):
             if not lo <= value <= hi:
                 raise UserError(f"{flag} {value} out of range; use {lo} to {hi}")
         if self.convert and self.principled_distribution not in (None, "auto"):
-            raise UserError("--principled-distribution sets the Principled conversion of the "
-                            "model materials; with --convert the file's own Principled "
-                            "materials are the reference: leave it out")
+            raise UserError(
+                "--principled-distribution sets the Principled conversion of the "
+                "model materials; with --convert the file's own Principled "
+                "materials are the reference: leave it out"
+            )
 
 
 # ---------------------------------------------------------------------------------------
 # Input checks (before anything is written)
+
 
 def check_blend_file(path: Path) -> Path:
     """An existing, readable Blender file (by its first bytes, not its name)."""
@@ -124,8 +154,9 @@ def open_blend(path: Path, log) -> bpy.types.Scene:
             bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False, use_scripts=False)
     except RuntimeError as exc:
         reason = str(exc).strip().splitlines()
-        raise UserError(f"Blender cannot open {path}: "
-                        f"{reason[-1] if reason else 'unknown error'}") from None
+        raise UserError(
+            f"Blender cannot open {path}: {reason[-1] if reason else 'unknown error'}"
+        ) from None
     scene = bpy.context.scene
     if scene is None:
         raise UserError(f"{path} has no scene")
@@ -141,8 +172,10 @@ def choose_camera(scene: bpy.types.Scene, name: str | None) -> bpy.types.Object:
             raise UserError(f"scene {scene.name!r} has no camera named {name!r}{listed}")
         return obj
     if scene.camera is None or scene.camera.type != 'CAMERA':
-        raise UserError(f"scene {scene.name!r} has no active camera{listed}; set one in the "
-                        "file or name one with --camera")
+        raise UserError(
+            f"scene {scene.name!r} has no active camera{listed}; set one in the "
+            "file or name one with --camera"
+        )
     return scene.camera
 
 
@@ -158,9 +191,11 @@ def check_data(path: Path) -> list:
     """Linked libraries and missing image files are refused; returns the image files read."""
     if len(bpy.data.libraries):
         names = ", ".join(lib.name for lib in bpy.data.libraries)
-        raise UserError(f"{path.name} links data from other files ({names}); make it local "
-                        "(File > External Data, or Object > Relations > Make Local) and save "
-                        "a copy")
+        raise UserError(
+            f"{path.name} links data from other files ({names}); make it local "
+            "(File > External Data, or Object > Relations > Make Local) and save "
+            "a copy"
+        )
     files = []
     for image in bpy.data.images:
         if image.users == 0 or image.source not in ('FILE', 'SEQUENCE', 'MOVIE', 'TILED'):
@@ -169,9 +204,11 @@ def check_data(path: Path) -> list:
             continue
         for f in image_files(image):
             if not f or not os.path.isfile(f):
-                raise UserError(f"image {image.name!r} of {path.name}: its file is missing "
-                                f"({f or 'no path'}); find it (File > External Data > Find "
-                                "Missing Files) or pack it, and save")
+                raise UserError(
+                    f"image {image.name!r} of {path.name}: its file is missing "
+                    f"({f or 'no path'}); find it (File > External Data > Find "
+                    "Missing Files) or pack it, and save"
+                )
             files.append(f)
     return files
 
@@ -191,12 +228,16 @@ def scene_materials(scene: bpy.types.Scene) -> list:
 # ---------------------------------------------------------------------------------------
 # The model's side
 
+
 def refresh_osl(nodes) -> None:
     """A file saved with another version of the shader gets this version's (in memory):
     the text datablock refreshed and each script node recompiled, keeping its values."""
     current = osl_shader.source()
-    stale = [n for n in nodes if model_node.implementation(n) == "osl"
-             and n.script.as_string() != current]
+    stale = [
+        n
+        for n in nodes
+        if model_node.implementation(n) == "osl" and n.script.as_string() != current
+    ]
     for node in stale:
         osl_shader.compile_script_node(node)
 
@@ -210,21 +251,30 @@ def set_model(mat: bpy.types.Material, job: SceneJob, impl: str | None) -> bpy.t
     refresh_osl([node])
     model_node.set_option(node, "view", "full")
     model_node.set_option(node, "light_transport", job.light_transport)
-    for key, value in (("g_model", job.g_model), ("diffuse_model", job.diffuse_model),
-                       ("energy", job.energy)):
+    for key, value in (
+        ("g_model", job.g_model),
+        ("diffuse_model", job.diffuse_model),
+        ("energy", job.energy),
+    ):
         if value is not None:
             model_node.set_option(node, key, value)
     if job.light_transport == "scene" and model_node.get_option(node, "units") != UNITS[0]:
-        raise UserError(f"material {mat.name!r} uses Unity's units, which exist in the lab "
-                        "transport only; use --light-transport lab, or set its Units to "
-                        "physical")
+        raise UserError(
+            f"material {mat.name!r} uses Unity's units, which exist in the lab "
+            "transport only; use --light-transport lab, or set its Units to "
+            "physical"
+        )
     return node
 
 
 def model_description(mat, node) -> dict:
     d = {"implementation": model_node.implementation(node)}
-    d.update({key: model_node.get_option(node, key)
-              for key in ("g_model", "diffuse_model", "energy", "units", "light_transport")})
+    d.update(
+        {
+            key: model_node.get_option(node, key)
+            for key in ("g_model", "diffuse_model", "energy", "units", "light_transport")
+        }
+    )
     return d
 
 
@@ -248,6 +298,7 @@ def to_principled(mat, job: SceneJob, energy: str) -> dict:
 
 # ---------------------------------------------------------------------------------------
 # Rendering
+
 
 def image_size(scene: bpy.types.Scene, size: int) -> tuple:
     """(width, height) with ``size`` the longer side and the camera's displayed aspect."""
@@ -289,8 +340,7 @@ def configure(scene: bpy.types.Scene, camera, job: SceneJob, osl: bool) -> tuple
     layer = bpy.context.view_layer
     layer.use_pass_material_index = True
     if layer.material_override is not None:
-        job.notes.append(f"view layer material override {layer.material_override.name!r} "
-                         "cleared")
+        job.notes.append(f"view layer material override {layer.material_override.name!r} cleared")
         layer.material_override = None
     return width, height
 
@@ -298,7 +348,7 @@ def configure(scene: bpy.types.Scene, camera, job: SceneJob, osl: bool) -> tuple
 def save_layers(scene: bpy.types.Scene, image, path: Path) -> None:
     """The Render Result as Blender's multilayer EXR (Combined, Material Index), whole."""
     s = scene.render.image_settings
-    if hasattr(s, "media_type"):                 # 5.0 and later
+    if hasattr(s, "media_type"):  # 5.0 and later
         s.media_type = 'MULTI_LAYER_IMAGE'
     s.file_format = 'OPEN_EXR_MULTILAYER'
     s.color_depth = '32'
@@ -312,12 +362,13 @@ def save_layers(scene: bpy.types.Scene, image, path: Path) -> None:
         s.file_format = 'OPEN_EXR'
 
 
-INDEX_CHANNELS = ("IndexMA.X", "Material Index.X")      # 4.5; 5.x
+INDEX_CHANNELS = ("IndexMA.X", "Material Index.X")  # 4.5; 5.x
 
 
 def read_material_index(path: Path) -> np.ndarray:
     """The Material Index pass of a multilayer EXR (all parts searched) as int (h, w)."""
     from ..core.hdri import oiio
+
     OIIO = oiio()
     inp = OIIO.ImageInput.open(str(path))
     if inp is None:
@@ -349,6 +400,7 @@ def render_into(scene, folder: Path, description: dict, log) -> tuple:
 # ---------------------------------------------------------------------------------------
 # Measuring and writing
 
+
 def _luminance(img: np.ndarray, mask: np.ndarray):
     if not mask.any():
         return None
@@ -359,13 +411,28 @@ def measure(lin_m, disp_m, lin_p, disp_p, de, mask) -> dict:
     """compare.metrics (model as A, Principled as B) and the luminance ratio model/Principled
     over a mask; None where the mask is empty."""
     y_m, y_p = _luminance(lin_m, mask), _luminance(lin_p, mask)
-    out = {"pixels": int(mask.sum()), "luminance_model": y_m, "luminance_principled": y_p,
-           "luminance_ratio": (y_m / y_p) if y_m is not None and y_p else None}
+    out = {
+        "pixels": int(mask.sum()),
+        "luminance_model": y_m,
+        "luminance_principled": y_p,
+        "luminance_ratio": (y_m / y_p) if y_m is not None and y_p else None,
+    }
     if mask.any():
         out.update(metrics(lin_m, lin_p, disp_m, disp_p, de, mask))
     else:
-        out.update({k: None for k in ("mae", "rmse", "rel_luminance_error", "psnr_db",
-                                      "ciede2000_mean", "ciede2000_p95")})
+        out.update(
+            {
+                k: None
+                for k in (
+                    "mae",
+                    "rmse",
+                    "rel_luminance_error",
+                    "psnr_db",
+                    "ciede2000_mean",
+                    "ciede2000_p95",
+                )
+            }
+        )
     return out
 
 
@@ -385,23 +452,32 @@ def _fmt(value, fmt: str) -> str:
 def write_scene_report(out: Path, data: dict) -> Path:
     """report.html: model | Principled | difference, the mask map and the material table."""
     model_label = "Cook-Torrance" + (" (converted)" if data["convert"] else "")
-    principled_label = "Principled BSDF" + (" (the file's)" if data["convert"]
-                                            else " (converted)")
-    figs = (("model/render.png", model_label), ("principled/render.png", principled_label),
-            ("diff.png", f"&Delta;E00 (black 0, white &ge; {HEATMAP_MAX:g})"),
-            ("materials.png", "materials compared (colours below; grey: the others)"))
-    row = "".join(f"<figure><img src='{src}' alt='{html.escape(src)}'><figcaption>"
-                  f"{label if label.startswith('&') else html.escape(label)}</figcaption>"
-                  "</figure>" for src, label in figs)
-    head = ("<tr><th></th><th>material</th><th>model</th><th>Principled</th><th>pixels</th>"
-            "<th>&Delta;E00 mean</th><th>&Delta;E00 p95</th><th>luminance model / "
-            "Principled</th><th>PSNR (dB)</th><th>notes</th></tr>")
+    principled_label = "Principled BSDF" + (" (the file's)" if data["convert"] else " (converted)")
+    figs = (
+        ("model/render.png", model_label),
+        ("principled/render.png", principled_label),
+        ("diff.png", f"&Delta;E00 (black 0, white &ge; {HEATMAP_MAX:g})"),
+        ("materials.png", "materials compared (colours below; grey: the others)"),
+    )
+    row = "".join(
+        f"<figure><img src='{src}' alt='{html.escape(src)}'><figcaption>"
+        f"{label if label.startswith('&') else html.escape(label)}</figcaption>"
+        "</figure>"
+        for src, label in figs
+    )
+    head = (
+        "<tr><th></th><th>material</th><th>model</th><th>Principled</th><th>pixels</th>"
+        "<th>&Delta;E00 mean</th><th>&Delta;E00 p95</th><th>luminance model / "
+        "Principled</th><th>PSNR (dB)</th><th>notes</th></tr>"
+    )
     rows = []
     for e in data["materials"]:
         swatch = "#%02x%02x%02x" % tuple(round(255 * c) for c in e["mask_colour"])
         model = e["model"]
-        what = (f"{model['implementation']}, G {model['g_model']}, {model['diffuse_model']}, "
-                f"energy {model['energy']}, {model['light_transport']}")
+        what = (
+            f"{model['implementation']}, G {model['g_model']}, {model['diffuse_model']}, "
+            f"energy {model['energy']}, {model['light_transport']}"
+        )
         rows.append(
             f"<tr><td style='background:{swatch}'></td><td>{html.escape(e['name'])}</td>"
             f"<td>{html.escape(what)}</td>"
@@ -409,24 +485,46 @@ def write_scene_report(out: Path, data: dict) -> Path:
             f"<td>{e['pixels']}</td><td>{_fmt(e['ciede2000_mean'], '.2f')}</td>"
             f"<td>{_fmt(e['ciede2000_p95'], '.2f')}</td>"
             f"<td>{_fmt(e['luminance_ratio'], '.4f')}</td><td>{_fmt(e['psnr_db'], '.2f')}</td>"
-            f"<td>{html.escape('; '.join(e['notes']))}</td></tr>")
+            f"<td>{html.escape('; '.join(e['notes']))}</td></tr>"
+        )
     o = data["overall"]
-    rows.append(f"<tr class='all'><td></td><td colspan=3>all compared materials</td>"
-                f"<td>{o['pixels']}</td><td>{_fmt(o['ciede2000_mean'], '.2f')}</td>"
-                f"<td>{_fmt(o['ciede2000_p95'], '.2f')}</td>"
-                f"<td>{_fmt(o['luminance_ratio'], '.4f')}</td>"
-                f"<td>{_fmt(o['psnr_db'], '.2f')}</td><td></td></tr>")
-    params = {k: data[k] for k in ("blend", "scene", "camera", "width", "height", "samples",
-                                   "seed", "light_transport", "convert", "osl",
-                                   "view_transform", "blender", "notes")}
-    direction = ("the file's Principled BSDF materials converted to the Cook-Torrance model, "
-                 "against the originals" if data["convert"] else
-                 "the file's Cook-Torrance materials against each converted to Principled BSDF")
+    rows.append(
+        f"<tr class='all'><td></td><td colspan=3>all compared materials</td>"
+        f"<td>{o['pixels']}</td><td>{_fmt(o['ciede2000_mean'], '.2f')}</td>"
+        f"<td>{_fmt(o['ciede2000_p95'], '.2f')}</td>"
+        f"<td>{_fmt(o['luminance_ratio'], '.4f')}</td>"
+        f"<td>{_fmt(o['psnr_db'], '.2f')}</td><td></td></tr>"
+    )
+    params = {
+        k: data[k]
+        for k in (
+            "blend",
+            "scene",
+            "camera",
+            "width",
+            "height",
+            "samples",
+            "seed",
+            "light_transport",
+            "convert",
+            "osl",
+            "view_transform",
+            "blender",
+            "notes",
+        )
+    }
+    direction = (
+        "the file's Principled BSDF materials converted to the Cook-Torrance model, "
+        "against the originals"
+        if data["convert"]
+        else "the file's Cook-Torrance materials against each converted to Principled BSDF"
+    )
     outside = data["outside"]
+    scene, blend = html.escape(data["scene"]), html.escape(Path(data["blend"]).name)
     page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: scene {html.escape(data['scene'])}</title>
+<html lang="en"><head><meta charset="utf-8"><title>Cook-Torrance Lab: scene {scene}</title>
 {STYLE}<style>figure img {{ width: 360px; max-width: 100%; }}</style></head><body>
-<h1>Cook-Torrance Lab: {html.escape(Path(data['blend']).name)}, scene “{html.escape(data['scene'])}”</h1>
+<h1>Cook-Torrance Lab: {blend}, scene “{scene}”</h1>
 <p>The scene through its camera {html.escape(data['camera'])}, rendered twice with the same
 Cycles settings ({data['width']}&times;{data['height']} px, {data['samples']} samples, seed
 {data['seed']}, light transport <b>{data['light_transport']}</b>): {direction}. Each
@@ -450,6 +548,7 @@ Principled {data['render_seconds']['principled']:.1f} s.</p>
 # ---------------------------------------------------------------------------------------
 # The job
 
+
 def run_scene(job: SceneJob, events: Events | None = None) -> dict:
     """Open the file, check it, render both versions into OUT/model and OUT/principled,
     compare per material, write metrics.json, diff.png, materials.png and report.html.
@@ -467,14 +566,18 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
     if job.convert:
         targets = [m for m in used if convert.surface_principled(m) is not None]
         if not targets:
-            raise UserError(f"scene {scene.name!r} has no Principled BSDF material on its "
-                            "objects; nothing to convert")
+            raise UserError(
+                f"scene {scene.name!r} has no Principled BSDF material on its "
+                "objects; nothing to convert"
+            )
     else:
         targets = [m for m in used if model_node.find(m) is not None]
         if not targets:
-            raise UserError(f"scene {scene.name!r} has no Cook-Torrance material on its "
-                            "objects; use --convert to compare its Principled materials")
-    for i, mat in enumerate(bpy.data.materials):        # unique, in memory only
+            raise UserError(
+                f"scene {scene.name!r} has no Cook-Torrance material on its "
+                "objects; use --convert to compare its Principled materials"
+            )
+    for i, mat in enumerate(bpy.data.materials):  # unique, in memory only
         mat.pass_index = i + 1
 
     # Every model material in the scene follows the scene's world and lights (light_sync).
@@ -483,8 +586,14 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
     refresh_osl([model_node.find(m) for m in others])
     entries = []
     for k, mat in enumerate(targets):
-        entries.append({"name": mat.name, "pass_index": mat.pass_index,
-                        "mask_colour": PALETTE[k % len(PALETTE)], "notes": []})
+        entries.append(
+            {
+                "name": mat.name,
+                "pass_index": mat.pass_index,
+                "mask_colour": PALETTE[k % len(PALETTE)],
+                "notes": [],
+            }
+        )
     if not job.convert:
         for mat, e in zip(targets, entries):
             node = set_model(mat, job, job.shader)
@@ -494,28 +603,39 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
         light_sync.sync_material(mat, scene, env=env)
 
     impl = job.shader or "osl"
-    osl = any(model_node.implementation(model_node.find(m)) == "osl"
-              for m in used if model_node.find(m) is not None) or \
-        (job.convert and impl == "osl")
+    osl = any(
+        model_node.implementation(model_node.find(m)) == "osl"
+        for m in used
+        if model_node.find(m) is not None
+    ) or (job.convert and impl == "osl")
     width, height = configure(scene, camera, job, osl)
 
     out = Path(job.out)
     folders = {"model": out / "model", "principled": out / "principled"}
-    refuse_overwrite(inputs, [f / n for f in folders.values() for n in RENDER_FILES]
-                     + [out / n for n in OUTPUT_FILES], [out])       # and not in the cache
+    refuse_overwrite(
+        inputs,
+        [f / n for f in folders.values() for n in RENDER_FILES] + [out / n for n in OUTPUT_FILES],
+        [out],
+    )  # and not in the cache
     check_writable(out)
-    forget_report(out / "report.html")     # no old report beside new images; only ctlab's
+    forget_report(out / "report.html")  # no old report beside new images; only ctlab's
 
-    description = {"blend": str(blend), "scene": scene.name, "camera": camera.name,
-                   "width": width, "height": height, "seed": job.seed,
-                   "light_transport": job.light_transport, "convert": job.convert,
-                   "osl": osl}
+    description = {
+        "blend": str(blend),
+        "scene": scene.name,
+        "camera": camera.name,
+        "width": width,
+        "height": height,
+        "seed": job.seed,
+        "light_transport": job.light_transport,
+        "convert": job.convert,
+        "osl": osl,
+    }
     first, second = ("principled", "model") if job.convert else ("model", "principled")
     scenes = {}
     events.check()
     events.progress(1, 3, f"{first}: {width}x{height} px, {job.samples} samples")
-    scenes[first], index = render_into(scene, folders[first], dict(description, side=first),
-                                       log)
+    scenes[first], index = render_into(scene, folders[first], dict(description, side=first), log)
     events.note(f"{scenes[first]['render_seconds']:.1f} s")
     events.check()
 
@@ -531,32 +651,37 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
             e.update(to_principled(mat, job, e["model"]["energy"]))
 
     events.progress(2, 3, f"{second}: {width}x{height} px, {job.samples} samples")
-    scenes[second], index2 = render_into(scene, folders[second],
-                                         dict(description, side=second), log)
+    scenes[second], index2 = render_into(
+        scene, folders[second], dict(description, side=second), log
+    )
     events.note(f"{scenes[second]['render_seconds']:.1f} s")
     events.check()
 
-    events.progress(3, 3, "comparing; writing metrics.json, diff.png, materials.png and "
-                          "report.html")
+    events.progress(
+        3, 3, "comparing; writing metrics.json, diff.png, materials.png and report.html"
+    )
     lin_m, disp_m = (read_image(folders["model"] / n) for n in ("render.exr", "render.png"))
-    lin_p, disp_p = (read_image(folders["principled"] / n)
-                     for n in ("render.exr", "render.png"))
+    lin_p, disp_p = (read_image(folders["principled"] / n) for n in ("render.exr", "render.png"))
     de = ciede2000(srgb_to_lab(disp_m), srgb_to_lab(disp_p))
     compared = np.zeros(index.shape, dtype=bool)
     for e in entries:
         mask = index == e["pass_index"]
         compared |= mask
         e.update(measure(lin_m, disp_m, lin_p, disp_p, de, mask))
-    data = dict(description, samples=job.samples,
-                view_transform=scene.view_settings.view_transform,
-                blender=bpy.app.version_string, notes=job.notes,
-                render_seconds={k: v["render_seconds"] for k, v in scenes.items()},
-                masks_agree=float(np.mean(index == index2)),
-                heatmap_max_ciede2000=HEATMAP_MAX,
-                materials=entries,
-                overall=measure(lin_m, disp_m, lin_p, disp_p, de, compared),
-                outside=measure(lin_m, disp_m, lin_p, disp_p, de, ~compared),
-                image=measure(lin_m, disp_m, lin_p, disp_p, de, np.ones_like(compared)))
+    data = dict(
+        description,
+        samples=job.samples,
+        view_transform=scene.view_settings.view_transform,
+        blender=bpy.app.version_string,
+        notes=job.notes,
+        render_seconds={k: v["render_seconds"] for k, v in scenes.items()},
+        masks_agree=float(np.mean(index == index2)),
+        heatmap_max_ciede2000=HEATMAP_MAX,
+        materials=entries,
+        overall=measure(lin_m, disp_m, lin_p, disp_p, de, compared),
+        outside=measure(lin_m, disp_m, lin_p, disp_p, de, ~compared),
+        image=measure(lin_m, disp_m, lin_p, disp_p, de, np.ones_like(compared)),
+    )
     data["materials"] = [dict(e, mask_colour=list(e["mask_colour"])) for e in entries]
     write_png(out / "diff.png", heatmap(de, HEATMAP_MAX))
     write_png(out / "materials.png", mask_image(index, entries))

@@ -26,8 +26,8 @@ from ..core.files import live_temporaries
 SIGNALS = {signal.SIGINT, signal.SIGTERM}
 MESSAGE = "ctlab: cancelled; finished outputs are kept\n"
 _watcher = None
-_stderr = 2          # a copy of the process's stderr taken at install: a writer that sends
-                     # fd 2 elsewhere for a moment (renderer.quiet) cannot swallow the line
+_stderr = 2  # a copy of the process's stderr taken at install: a writer that sends
+# fd 2 elsewhere for a moment (renderer.quiet) cannot swallow the line
 
 
 def block() -> None:

@@ -6,16 +6,31 @@ from __future__ import annotations
 import bpy
 
 from ..blender import convert, light_sync, model_node, renderer, scene_lights
-from .operators import (PLOT_IMAGE, CTLAB_OT_add_node_group, CTLAB_OT_add_texture,
-                        CTLAB_OT_bake_environment, CTLAB_OT_brdf_plot,
-                        CTLAB_OT_build_sphere_matrix,
-                        CTLAB_OT_cancel_comparison, CTLAB_OT_convert_to_cook_torrance,
-                        CTLAB_OT_convert_to_principled, CTLAB_OT_new_material,
-                        CTLAB_OT_render_comparison, CTLAB_OT_scene_comparison,
-                        CTLAB_OT_set_view_all,
-                        CTLAB_OT_switch_implementation, CTLAB_OT_sync_lighting, JOBS)
-from ..core.model import (IMPLEMENTATION_LABELS, LIGHT_SLOTS, ggx_alpha, perceptual_roughness,
-                          transport_notes)
+from .operators import (
+    PLOT_IMAGE,
+    CTLAB_OT_add_node_group,
+    CTLAB_OT_add_texture,
+    CTLAB_OT_bake_environment,
+    CTLAB_OT_brdf_plot,
+    CTLAB_OT_build_sphere_matrix,
+    CTLAB_OT_cancel_comparison,
+    CTLAB_OT_convert_to_cook_torrance,
+    CTLAB_OT_convert_to_principled,
+    CTLAB_OT_new_material,
+    CTLAB_OT_render_comparison,
+    CTLAB_OT_scene_comparison,
+    CTLAB_OT_set_view_all,
+    CTLAB_OT_switch_implementation,
+    CTLAB_OT_sync_lighting,
+    JOBS,
+)
+from ..core.model import (
+    IMPLEMENTATION_LABELS,
+    LIGHT_SLOTS,
+    ggx_alpha,
+    perceptual_roughness,
+    transport_notes,
+)
 
 
 def _source_label(sock: bpy.types.NodeSocket) -> str:
@@ -49,21 +64,25 @@ def _image_node(sock):
 def _transport_box(layout, scene, node) -> None:
     """What the material sees in its light transport, and the render settings that keep the
     scene transport from being exact."""
-    options = {k: model_node.get_option(node, k) for k in
-               ("light_transport", "view", "units", "g_model", "diffuse_model", "energy")}
+    options = {
+        k: model_node.get_option(node, k)
+        for k in ("light_transport", "view", "units", "g_model", "diffuse_model", "energy")
+    }
     box = layout.box()
     for i, line in enumerate(transport_notes(model_node.implementation(node), **options)):
         box.label(text=line, icon='LIGHT' if i == 0 else 'BLANK1')
     if options["light_transport"] == "scene":
-        inexact = renderer.inexact_path_tracing(scene) if scene.render.engine == 'CYCLES' \
-            else []
+        inexact = renderer.inexact_path_tracing(scene) if scene.render.engine == 'CYCLES' else []
         if inexact:
-            box.label(text="Not exact with " + ", ".join(inexact) + " (Render Properties > "
-                      "Light Paths)", icon='ERROR')
+            box.label(
+                text="Not exact with " + ", ".join(inexact) + " (Render Properties > Light Paths)",
+                icon='ERROR',
+            )
 
 
 class CTLAB_PT_material(bpy.types.Panel):
     """Material Properties > Cook-Torrance: the model's inputs, view and switches."""
+
     bl_label = "Cook-Torrance"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
@@ -78,11 +97,16 @@ class CTLAB_PT_material(bpy.types.Panel):
         mat = getattr(context, "material", None)
         node = model_node.find(mat)
         if node is None:
-            layout.label(text="This material does not use the Cook-Torrance model"
-                         if mat is not None else "No material", icon='INFO')
+            layout.label(
+                text="This material does not use the Cook-Torrance model"
+                if mat is not None
+                else "No material",
+                icon='INFO',
+            )
             if mat is not None and convert.surface_principled(mat) is not None:
-                layout.operator(CTLAB_OT_convert_to_cook_torrance.bl_idname,
-                                icon='SHADING_RENDERED').scope = 'ACTIVE'
+                layout.operator(
+                    CTLAB_OT_convert_to_cook_torrance.bl_idname, icon='SHADING_RENDERED'
+                ).scope = 'ACTIVE'
             layout.operator(CTLAB_OT_new_material.bl_idname, icon='ADD')
             return
         scene = context.scene
@@ -94,8 +118,9 @@ class CTLAB_PT_material(bpy.types.Panel):
         if tex is not None:
             col.template_ID(tex, "image", new="image.new", open="image.open")
         elif not albedo.is_linked:
-            col.operator(CTLAB_OT_add_texture.bl_idname, text="Add Albedo Texture",
-                         icon='TEXTURE').slot = "albedo"
+            col.operator(
+                CTLAB_OT_add_texture.bl_idname, text="Add Albedo Texture", icon='TEXTURE'
+            ).slot = "albedo"
         _input_row(col, model_node.surface_input(node, "metallic"), "Metallic")
         smooth = model_node.surface_input(node, "smoothness")
         _input_row(col, smooth, "Smoothness")
@@ -103,7 +128,9 @@ class CTLAB_PT_material(bpy.types.Panel):
             col.label(text="Roughness = 1 - smoothness, per texel")
         else:
             s = smooth.default_value
-            col.label(text=f"Roughness {perceptual_roughness(s):.3f}   GGX alpha {ggx_alpha(s):.4f}")
+            col.label(
+                text=f"Roughness {perceptual_roughness(s):.3f}   GGX alpha {ggx_alpha(s):.4f}"
+            )
         normal = model_node.surface_input(node, "normal")
         if normal.is_linked and normal.links[0].from_node.bl_idname != "ShaderNodeNewGeometry":
             _input_row(col, normal, "Normal")
@@ -113,8 +140,9 @@ class CTLAB_PT_material(bpy.types.Panel):
         else:
             row = col.row()
             row.label(text="Normal: geometry")
-            row.operator(CTLAB_OT_add_texture.bl_idname, text="Add Normal Map",
-                         icon='NORMALS_FACE').slot = "normal"
+            row.operator(
+                CTLAB_OT_add_texture.bl_idname, text="Add Normal Map", icon='NORMALS_FACE'
+            ).slot = "normal"
 
         col = layout.column(heading="Model")
         col.prop(mat, "ctlab_view")
@@ -137,48 +165,63 @@ class CTLAB_PT_material(bpy.types.Panel):
 
         impl = model_node.implementation(node)
         box = layout.box()
-        box.label(text=f"Implementation: {IMPLEMENTATION_LABELS[impl][0]}",
-                  icon='SCRIPT' if impl == "osl" else 'NODETREE')
+        box.label(
+            text=f"Implementation: {IMPLEMENTATION_LABELS[impl][0]}",
+            icon='SCRIPT' if impl == "osl" else 'NODETREE',
+        )
         if impl == "osl":
             reason = model_node.osl_unavailable_reason(scene)
             if reason:
                 box.label(text=f"OSL cannot run: {reason}", icon='ERROR')
-            op = box.operator(CTLAB_OT_switch_implementation.bl_idname, text="Use Node Group",
-                              icon='NODETREE')
+            op = box.operator(
+                CTLAB_OT_switch_implementation.bl_idname, text="Use Node Group", icon='NODETREE'
+            )
             op.target = "nodes"
         else:
             box.label(text="Reference indirect light needs the OSL shader")
-            op = box.operator(CTLAB_OT_switch_implementation.bl_idname, text="Use OSL Shader",
-                              icon='SCRIPT')
+            op = box.operator(
+                CTLAB_OT_switch_implementation.bl_idname, text="Use OSL Shader", icon='SCRIPT'
+            )
             op.target = "osl"
 
         box = layout.box()
         sun = light_sync.key_sun(scene)
-        box.label(text=f"Key light: {sun.name}" if sun else "Key light: none (no Sun in the scene)",
-                  icon='LIGHT_SUN')
+        box.label(
+            text=f"Key light: {sun.name}" if sun else "Key light: none (no Sun in the scene)",
+            icon='LIGHT_SUN',
+        )
         box.prop(scene, "ctlab_sun")
         used, unused = scene_lights.scene_lights(scene, exclude=sun)
-        box.label(text=f"Other lights: {len(used)} shaded (of {LIGHT_SLOTS} slots)"
-                  if used else "Other lights: none", icon='LIGHT')
+        box.label(
+            text=f"Other lights: {len(used)} shaded (of {LIGHT_SLOTS} slots)"
+            if used
+            else "Other lights: none",
+            icon='LIGHT',
+        )
         for obj in used:
             problems = scene_lights.unsupported(obj)
-            box.label(text=f"  {obj.name}" + (f" (not followed: {', '.join(problems)})"
-                                               if problems else ""),
-                      icon='ERROR' if problems else 'DOT')
+            box.label(
+                text=f"  {obj.name}"
+                + (f" (not followed: {', '.join(problems)})" if problems else ""),
+                icon='ERROR' if problems else 'DOT',
+            )
         if unused:
-            box.label(text=f"Not shaded (more lights than slots; the last by Suns first, "
-                           f"then power): "
-                           f"{', '.join(o.name for o in unused)}", icon='ERROR')
+            box.label(
+                text=f"Not shaded (more lights than slots; the last by Suns first, "
+                f"then power): "
+                f"{', '.join(o.name for o in unused)}",
+                icon='ERROR',
+            )
         if impl == "nodes" and (used or sun):
-            box.label(text="The node group's lights cast no shadows (it cannot trace)",
-                      icon='INFO')
+            box.label(text="The node group's lights cast no shadows (it cannot trace)", icon='INFO')
         box.label(text=light_sync.world_label(scene), icon='WORLD')
         error = light_sync.last_error.get(scene.name)
         if error:
             box.label(text=error, icon='ERROR')
         box.operator(CTLAB_OT_sync_lighting.bl_idname, icon='FILE_REFRESH')
-        layout.operator(CTLAB_OT_convert_to_principled.bl_idname,
-                        icon='SHADING_RENDERED').scope = 'ACTIVE'
+        layout.operator(
+            CTLAB_OT_convert_to_principled.bl_idname, icon='SHADING_RENDERED'
+        ).scope = 'ACTIVE'
 
 
 class _Sidebar:
@@ -189,6 +232,7 @@ class _Sidebar:
 
 class CTLAB_PT_sidebar(_Sidebar, bpy.types.Panel):
     """3D Viewport > Sidebar > Cook-Torrance: the sphere matrix and the environment bake."""
+
     bl_label = "Cook-Torrance Lab"
 
     def draw(self, context):
@@ -202,6 +246,7 @@ class CTLAB_PT_sidebar(_Sidebar, bpy.types.Panel):
 
 class CTLAB_PT_sidebar_materials(_Sidebar, bpy.types.Panel):
     """Every Cook-Torrance material at once: view, lighting, conversion."""
+
     bl_label = "Materials"
     bl_parent_id = "CTLAB_PT_sidebar"
 
@@ -209,8 +254,9 @@ class CTLAB_PT_sidebar_materials(_Sidebar, bpy.types.Panel):
         layout = self.layout
         count = sum(1 for _ in model_node.model_materials())
         layout.label(text=f"{count} Cook-Torrance material{'s' * (count != 1)}")
-        layout.operator_menu_enum(CTLAB_OT_set_view_all.bl_idname, "view",
-                                  text="Set View on All", icon='HIDE_OFF')
+        layout.operator_menu_enum(
+            CTLAB_OT_set_view_all.bl_idname, "view", text="Set View on All", icon='HIDE_OFF'
+        )
         layout.operator(CTLAB_OT_new_material.bl_idname, icon='ADD')
         layout.prop(context.scene, "ctlab_sun")
         layout.operator(CTLAB_OT_sync_lighting.bl_idname, icon='FILE_REFRESH')
@@ -222,6 +268,7 @@ class CTLAB_PT_sidebar_materials(_Sidebar, bpy.types.Panel):
 
 class CTLAB_PT_sidebar_comparison(_Sidebar, bpy.types.Panel):
     """The batch comparison against Principled BSDF, in a background process."""
+
     bl_label = "Comparison"
     bl_parent_id = "CTLAB_PT_sidebar"
 
@@ -231,18 +278,22 @@ class CTLAB_PT_sidebar_comparison(_Sidebar, bpy.types.Panel):
         job = JOBS.get("comparison")
         state = job.state if job is not None else ""
         if state in ("running", "cancelling"):
-            layout.progress(factor=wm.ctlab_job_progress, type='BAR',
-                            text=wm.ctlab_job_message or "running")
+            layout.progress(
+                factor=wm.ctlab_job_progress, type='BAR', text=wm.ctlab_job_message or "running"
+            )
             layout.operator(CTLAB_OT_cancel_comparison.bl_idname, icon='CANCEL')
             return
         layout.operator(CTLAB_OT_render_comparison.bl_idname, icon='RENDER_RESULT')
         layout.operator(CTLAB_OT_scene_comparison.bl_idname, icon='SCENE_DATA')
         if state == "done":
-            layout.operator("wm.url_open", text="Open Report",
-                            icon='HELP').url = job.report.as_uri()
+            layout.operator(
+                "wm.url_open", text="Open Report", icon='HELP'
+            ).url = job.report.as_uri()
         elif state in ("failed", "cancelled"):
-            layout.label(text=f"{state.title()}: {job.message}",
-                         icon='ERROR' if state == "failed" else 'INFO')
+            layout.label(
+                text=f"{state.title()}: {job.message}",
+                icon='ERROR' if state == "failed" else 'INFO',
+            )
 
 
 def draw_add_menu(self, context):
@@ -254,6 +305,10 @@ def draw_add_menu(self, context):
     self.layout.operator(CTLAB_OT_add_node_group.bl_idname, icon='NODETREE')
 
 
-PANELS = (CTLAB_PT_material, CTLAB_PT_sidebar, CTLAB_PT_sidebar_materials,
-          CTLAB_PT_sidebar_comparison)
+PANELS = (
+    CTLAB_PT_material,
+    CTLAB_PT_sidebar,
+    CTLAB_PT_sidebar_materials,
+    CTLAB_PT_sidebar_comparison,
+)
 MENU_ENTRIES = (("NODE_MT_add", draw_add_menu),)

@@ -22,19 +22,32 @@ class CTLAB_AddonPreferences(bpy.types.AddonPreferences):
     bl_idname = PACKAGE
 
     implementation: EnumProperty(
-        name="Default Implementation", items=IMPLEMENTATION_ITEMS, default="nodes",
-        description="What new Cook-Torrance materials and conversions use")
+        name="Default Implementation",
+        items=IMPLEMENTATION_ITEMS,
+        default="nodes",
+        description="What new Cook-Torrance materials and conversions use",
+    )
     hdri: StringProperty(
-        name="Default HDRI", subtype='FILE_PATH', default="",
+        name="Default HDRI",
+        subtype='FILE_PATH',
+        default="",
         description="Equirectangular HDRI for new sphere matrices and comparisons when the "
-                    "world has none; empty: Blender's bundled forest.exr")
+        "world has none; empty: Blender's bundled forest.exr",
+    )
     cache_folder: StringProperty(
-        name="Cache Folder", subtype='DIR_PATH', default="",
+        name="Cache Folder",
+        subtype='DIR_PATH',
+        default="",
         description="Where baked environments and importance tables are kept; empty: the "
-                    "extension's user folder")
+        "extension's user folder",
+    )
     samples: IntProperty(
-        name="Default Samples", default=DEFAULT_SAMPLES, min=1, max=65536,
-        description="Render samples of the comparison job")
+        name="Default Samples",
+        default=DEFAULT_SAMPLES,
+        min=1,
+        max=65536,
+        description="Render samples of the comparison job",
+    )
 
     def draw(self, context):
         layout = self.layout

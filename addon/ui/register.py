@@ -15,7 +15,7 @@ CLASSES = (preferences.CTLAB_AddonPreferences,) + operators.CLASSES + panels.PAN
 def register():
     try:
         osl_shader.ensure_oslquery()
-    except Exception as exc:            # the node group still works without OSL
+    except Exception as exc:  # the node group still works without OSL
         print(f"Cook-Torrance Lab: {exc}")
     for cls in CLASSES:
         bpy.utils.register_class(cls)

@@ -48,10 +48,10 @@ def _convolved(r, radiance, alpha):
     a2 = alpha * alpha
     out = np.zeros((len(r), 3))
     for i0 in range(0, len(r), 64):
-        mu = r[i0:i0 + 64] @ d.T
+        mu = r[i0 : i0 + 64] @ d.T
         nh2 = (1 + mu) / 2
         k = a2 / (np.pi * (nh2 * (a2 - 1) + 1) ** 2) * np.maximum(mu, 0) * dw
-        out[i0:i0 + 64] = (k @ L) / k.sum(axis=1, keepdims=True)
+        out[i0 : i0 + 64] = (k @ L) / k.sum(axis=1, keepdims=True)
     return out
 
 
@@ -69,16 +69,31 @@ def _level_mix(r, radiance, x):
     return (1 - f) * _convolved(r, radiance, alpha(i)) + f * _convolved(r, radiance, alpha(j))
 
 
-@pytest.mark.parametrize("shader,ibl", [("osl", "split_sum"), ("nodes", "split_sum"),
-                                        ("osl", "unity"), ("nodes", "unity")])
-def test_baked_modes_at_intermediate_roughness_under_a_bright_patch(tmp_path, patch_world,
-                                                                   shader, ibl):
+@pytest.mark.parametrize(
+    "shader,ibl",
+    [("osl", "split_sum"), ("nodes", "split_sum"), ("osl", "unity"), ("nodes", "unity")],
+)
+def test_baked_modes_at_intermediate_roughness_under_a_bright_patch(
+    tmp_path, patch_world, shader, ibl
+):
     path, radiance = patch_world
     albedo = np.array((0.9, 0.7, 0.5))
     views = ("indirect_specular", "indirect_diffuse", "normal")
-    img, scene = render(tmp_path, view=views, shader=shader, ibl=ibl, grid=(5, 2), size=160,
-                        samples=1, pixel_centres=True, hdri=path, sun_strength=0.0,
-                        albedo=tuple(albedo), diffuse_model="lambert", mutual_shadows=False)
+    img, scene = render(
+        tmp_path,
+        view=views,
+        shader=shader,
+        ibl=ibl,
+        grid=(5, 2),
+        size=160,
+        samples=1,
+        pixel_centres=True,
+        hdri=path,
+        sun_strength=0.0,
+        albedo=tuple(albedo),
+        diffuse_model="lambert",
+        mutual_shadows=False,
+    )
     v = np.array(scene["to_camera"])
     rng = np.random.default_rng(4)
     checked = 0
@@ -98,8 +113,12 @@ def test_baked_modes_at_intermediate_roughness_under_a_bright_patch(tmp_path, pa
         if ibl == "split_sum":
             env = _level_mix(r, radiance, pr * 6)
             grid = np.linspace(0.02, 1.0, 25)
-            table = np.array([specular_albedo(x, albedo, metal, cell["smoothness"],
-                                              n_theta=400, n_phi=200) for x in grid])
+            table = np.array(
+                [
+                    specular_albedo(x, albedo, metal, cell["smoothness"], n_theta=400, n_phi=200)
+                    for x in grid
+                ]
+            )
             dfg = np.stack([np.interp(nv, grid, table[:, c]) for c in range(3)], axis=1)
             want_spec = env * dfg
         else:
@@ -111,12 +130,16 @@ def test_baked_modes_at_intermediate_roughness_under_a_bright_patch(tmp_path, pa
         want_diff = diff_color * _irradiance(n, radiance) / np.pi
         got_spec = img["indirect_specular"][ys[pick], xs[pick]]
         got_diff = img["indirect_diffuse"][ys[pick], xs[pick]]
-        front = nv > 0.15                        # the DFG table's grazing end is the coarsest
+        front = nv > 0.15  # the DFG table's grazing end is the coarsest
         rel = np.abs(got_spec - want_spec)[front] / want_spec[front]
         # measured: median 0.01-0.2%, 95th percentile below 0.9% (both implementations, both
         # modes); Unity's mip read as pr 6 (the mutation tried): median 1.9%, 95th 19%
-        assert np.median(rel) < 0.005 and np.percentile(rel, 95) < 0.02, \
-            (cell["row"], cell["col"], np.median(rel), np.percentile(rel, 95))
+        assert np.median(rel) < 0.005 and np.percentile(rel, 95) < 0.02, (
+            cell["row"],
+            cell["col"],
+            np.median(rel),
+            np.percentile(rel, 95),
+        )
         if metal < 1:
             np.testing.assert_allclose(got_diff, want_diff, rtol=0.01)
         checked += 1

@@ -13,13 +13,23 @@ import bpy
 from helpers import ROOT
 from addon.core import osl_source
 
-BLENDER_EXT = (Path(bpy.utils.resource_path('LOCAL')) / "scripts" / "addons_core" / "bl_pkg"
-               / "cli" / "blender_ext.py")
+BLENDER_EXT = (
+    Path(bpy.utils.resource_path('LOCAL'))
+    / "scripts"
+    / "addons_core"
+    / "bl_pkg"
+    / "cli"
+    / "blender_ext.py"
+)
 
 
 def _ext(*args):
-    return subprocess.run([sys.executable, str(BLENDER_EXT), *map(str, args)],
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, str(BLENDER_EXT), *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
@@ -32,6 +42,7 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
     p = _ext("validate", zips[0])
     assert p.returncode == 0 and "Success" in p.stdout, p.stdout + p.stderr
     import zipfile
+
     names = zipfile.ZipFile(zips[0]).namelist()
     assert "osl/cook_torrance.osl" in names and "__init__.py" in names
     # the shader's parts travel with it (the add-on inlines them when it loads the source)
@@ -50,12 +61,14 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
         addon = bpy.context.preferences.addons["bl_ext.user_default.cook_torrance_lab"]
         assert addon.preferences.implementation == "nodes" and addon.preferences.samples == 64
         print("CLASSES=" + ",".join(sorted(n for n in dir(bpy.types) if n.startswith("CTLAB_"))))
-        print("PROPS=" + ",".join(sorted(n for n in dir(bpy.types.Material) if n.startswith("ctlab_"))))
+        props = sorted(n for n in dir(bpy.types.Material) if n.startswith("ctlab_"))
+        print("PROPS=" + ",".join(props))
         print("MENU=" + ",".join(f.__name__ for f in bpy.types.NODE_MT_add._dyn_ui_initialize()))
         user = bpy.data.objects.new("User Empty", None)
         bpy.context.scene.collection.objects.link(user)
         for _ in range(2):
-            assert bpy.ops.ctlab.build_sphere_matrix(rows=2, cols=3, resolution=64) == {{'FINISHED'}}
+            done = bpy.ops.ctlab.build_sphere_matrix(rows=2, cols=3, resolution=64)
+            assert done == {{'FINISHED'}}
         tagged = [o for o in bpy.data.objects if o.get("ctlab_matrix")]
         assert len([o for o in tagged if o.type == 'MESH']) == 6, len(tagged)
         assert "User Empty" in bpy.data.objects
@@ -71,7 +84,8 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
         # the bake operator bakes the world's Environment Texture (forest.exr) into the cache
         assert bpy.ops.ctlab.bake_environment() == {{'FINISHED'}}
         import json, pathlib
-        info = json.loads((pathlib.Path(bpy.context.scene["ctlab_ibl_bake"]) / "bake.json").read_text())
+        bake = pathlib.Path(bpy.context.scene["ctlab_ibl_bake"])
+        info = json.loads((bake / "bake.json").read_text())
         assert info["source"].endswith("forest.exr") and len(info["levels"]) == 7, info
         try:
             bpy.ops.ctlab.bake_environment(filepath="/nonexistent.exr")
@@ -81,14 +95,20 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
         print("EXTENSION-OK")
     """)
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))
-    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
-                       timeout=300)
+    p = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300
+    )
     assert "EXTENSION-OK" in p.stdout, p.stdout[-2000:] + p.stderr[-2000:]
     # the same panels, operators, preferences, properties and menu entry as the source tree
     from addon.ui import properties, register, panels as ui
-    lines = dict(line.split("=", 1) for line in p.stdout.splitlines()
-                 if line.startswith(("CLASSES=", "PROPS=", "MENU=")))
-    assert lines["CLASSES"].split(",") == sorted(c.__name__ for c in register.CLASSES
-                                                 if "_OT_" in c.__name__ or "_PT_" in c.__name__)
+
+    lines = dict(
+        line.split("=", 1)
+        for line in p.stdout.splitlines()
+        if line.startswith(("CLASSES=", "PROPS=", "MENU="))
+    )
+    assert lines["CLASSES"].split(",") == sorted(
+        c.__name__ for c in register.CLASSES if "_OT_" in c.__name__ or "_PT_" in c.__name__
+    )
     assert lines["PROPS"].split(",") == sorted(properties.NAMES[0][1])
     assert ui.draw_add_menu.__name__ in lines["MENU"].split(",")

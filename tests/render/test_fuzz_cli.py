@@ -14,16 +14,46 @@ from addon.jobs import cli
 # overflow), malformed lists, odd tokens. A command line is either valid (it renders a 16- or
 # 24-px image with one sample) or valid but for one hostile token, so that both outcomes are
 # met often (the last test checks that).
-VALID = {"--shader": ["osl", "nodes", "principled"], "--grid": ["1x1", "2x1", "1X2"],
-         "--size": ["16", "24"], "--hdri-strength": ["1", "0", "2.5"],
-         "--hdri-rotation": ["-1e-05", "370", "-90"],
-         "--sun-dir": ["-0.45,-0.55,0.70", "0,0,-1", "1e200,0,0", "-1,-1,-1"],
-         "--sun-strength": ["0", "3"], "--albedo": ["1,0.5,0", "0,0,0"],
-         "--env-samples": ["1", "2"], "--seed": ["0", "7"], "--view": ["D", "normal", "full"],
-         "--g": ["smith_ggx_correlated"], "--units": ["unity"], "--diffuse": ["lambert"]}
-HOSTILE = ["-1", "1e39", "nan", "inf", "-inf", "1e309", "abc", "", "0x10", "1,2", "0,0,0",
-           "2147483648", "-7", "1,2,3,4", "--out", "16.5", "0x3", "-1x2", "99999", "16x16",
-           "beckmann", "arnold"]
+VALID = {
+    "--shader": ["osl", "nodes", "principled"],
+    "--grid": ["1x1", "2x1", "1X2"],
+    "--size": ["16", "24"],
+    "--hdri-strength": ["1", "0", "2.5"],
+    "--hdri-rotation": ["-1e-05", "370", "-90"],
+    "--sun-dir": ["-0.45,-0.55,0.70", "0,0,-1", "1e200,0,0", "-1,-1,-1"],
+    "--sun-strength": ["0", "3"],
+    "--albedo": ["1,0.5,0", "0,0,0"],
+    "--env-samples": ["1", "2"],
+    "--seed": ["0", "7"],
+    "--view": ["D", "normal", "full"],
+    "--g": ["smith_ggx_correlated"],
+    "--units": ["unity"],
+    "--diffuse": ["lambert"],
+}
+HOSTILE = [
+    "-1",
+    "1e39",
+    "nan",
+    "inf",
+    "-inf",
+    "1e309",
+    "abc",
+    "",
+    "0x10",
+    "1,2",
+    "0,0,0",
+    "2147483648",
+    "-7",
+    "1,2,3,4",
+    "--out",
+    "16.5",
+    "0x3",
+    "-1x2",
+    "99999",
+    "16x16",
+    "beckmann",
+    "arnold",
+]
 REQUIRED = ("--shader", "--grid", "--size")
 OPTIONAL = tuple(f for f in VALID if f not in REQUIRED)
 OUTCOMES = []
@@ -33,7 +63,7 @@ OUTCOMES = []
 def command_lines(draw):
     flags = list(REQUIRED) + draw(st.lists(st.sampled_from(OPTIONAL), max_size=3, unique=True))
     values = [draw(st.sampled_from(VALID[f])) for f in flags]
-    if draw(st.booleans()):                                  # one hostile token
+    if draw(st.booleans()):  # one hostile token
         k = draw(st.integers(0, len(flags) - 1))
         values[k] = draw(st.sampled_from(HOSTILE))
     argv = ["render", "--samples", "1"]
@@ -48,8 +78,13 @@ def _listing(root: Path) -> set:
     return set(root.rglob("*"))
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, database=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 @given(argv=command_lines())
 def test_fuzzed_command_lines_exit_0_or_2_with_one_line(argv, tmp_path_factory, capsys):
     work = tmp_path_factory.mktemp("fuzz")

@@ -32,8 +32,22 @@ def test_negative_values_parse_and_render(tmp_path, capsys):
     """The documented syntax with negative components, as the add-on's default Sun has them:
     argparse used to read "-0.45,..." as an option ("expected one argument")."""
     out = tmp_path / "out"
-    code = cli.main(["render", "--shader", "nodes", "--view", "NdotL", *SMALL, "--out", str(out),
-                     "--sun-dir", "-0.45,-0.55,0.70", "--hdri-rotation", "-1e-05"])
+    code = cli.main(
+        [
+            "render",
+            "--shader",
+            "nodes",
+            "--view",
+            "NdotL",
+            *SMALL,
+            "--out",
+            str(out),
+            "--sun-dir",
+            "-0.45,-0.55,0.70",
+            "--hdri-rotation",
+            "-1e-05",
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     scene = json.loads((out / "scene.json").read_text())
     want = np.array([-0.45, -0.55, 0.70]) / np.linalg.norm([-0.45, -0.55, 0.70])
@@ -49,12 +63,16 @@ def test_nothing_is_written_outside_out_and_the_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("CTLAB_CACHE", str(cache_dir))
     before = _listing(tmp_path)
     a, b = tmp_path / "a", tmp_path / "b"
-    assert cli.main(["render", "--shader", "osl", "--ibl", "split_sum", *SMALL,
-                     "--out", str(a)]) == 0
+    assert (
+        cli.main(["render", "--shader", "osl", "--ibl", "split_sum", *SMALL, "--out", str(a)]) == 0
+    )
     assert cli.main(["render", "--shader", "nodes", *SMALL, "--out", str(b)]) == 0
     assert cli.main(["compare", str(a), str(b), "--out", str(tmp_path / "c")]) == 0
-    new = {p for p in _listing(tmp_path) - before
-           if not any(p == d or d in p.parents for d in (a, b, tmp_path / "c", cache_dir))}
+    new = {
+        p
+        for p in _listing(tmp_path) - before
+        if not any(p == d or d in p.parents for d in (a, b, tmp_path / "c", cache_dir))
+    }
     assert not new, new
 
 
@@ -77,22 +95,55 @@ def test_a_damaged_cache_entry_is_rebuilt_not_used(tmp_path, monkeypatch):
     folder = ibl_bake.bake(hdri)
     assert cache.intact(folder)
     first = tmp_path / "first"
-    assert cli.main(["render", "--shader", "nodes", "--view", "indirect", *SMALL, "--pixel-centres",
-                     "--hdri", str(hdri), "--out", str(first)]) == 0
+    assert (
+        cli.main(
+            [
+                "render",
+                "--shader",
+                "nodes",
+                "--view",
+                "indirect",
+                *SMALL,
+                "--pixel-centres",
+                "--hdri",
+                str(hdri),
+                "--out",
+                str(first),
+            ]
+        )
+        == 0
+    )
     level = folder / ibl_bake.level_file(2)
-    level.write_bytes(level.read_bytes()[:100])                      # truncated
+    level.write_bytes(level.read_bytes()[:100])  # truncated
     assert not cache.intact(folder)
     again = ibl_bake.bake(hdri)
     assert again == folder and cache.intact(again)
     assert (folder / ibl_bake.level_file(2)).stat().st_size > 100
     second = tmp_path / "second"
     write_float_exr(folder / ibl_bake.level_file(3), np.zeros((32, 64, 3), np.float32))  # changed
-    assert cli.main(["render", "--shader", "nodes", "--view", "indirect", *SMALL, "--pixel-centres",
-                     "--hdri", str(hdri), "--out", str(second)]) == 0
+    assert (
+        cli.main(
+            [
+                "render",
+                "--shader",
+                "nodes",
+                "--view",
+                "indirect",
+                *SMALL,
+                "--pixel-centres",
+                "--hdri",
+                str(hdri),
+                "--out",
+                str(second),
+            ]
+        )
+        == 0
+    )
     # the same to float precision (a rebuilt bake's FFTs may round differently: 6e-6 seen),
     # where a level read as damaged (zeros, or a truncated file) changes values by far more
-    np.testing.assert_allclose(read_image(second / "render.exr"),
-                               read_image(first / "render.exr"), rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(
+        read_image(second / "render.exr"), read_image(first / "render.exr"), rtol=1e-4, atol=1e-6
+    )
 
 
 def test_a_dead_processs_staging_folder_is_removed(tmp_path, monkeypatch):
@@ -100,8 +151,9 @@ def test_a_dead_processs_staging_folder_is_removed(tmp_path, monkeypatch):
     the cache removes it when that process is gone (a live one's is left alone)."""
     monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
     root = cache.cache_dir()
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True).stdout.strip()
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    ).stdout.strip()
     stale = root / f".ibl-v3-x.{dead}-0123abcd.partial"
     (stale / "specular_0.exr").parent.mkdir(parents=True)
     (stale / "specular_0.exr").write_bytes(b"half")
@@ -113,8 +165,9 @@ def test_a_dead_processs_staging_folder_is_removed(tmp_path, monkeypatch):
 
 def _start(args, env=None, **kw):
     env = dict(os.environ, PYTHONUNBUFFERED="1", **(env or {}))
-    return subprocess.Popen(CTLAB + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env, **kw)
+    return subprocess.Popen(
+        CTLAB + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, **kw
+    )
 
 
 def _wait_for(proc, text, timeout=180):
@@ -148,8 +201,22 @@ def test_a_signal_cancels_a_render_within_seconds(tmp_path, sig):
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     out = tmp_path / "out"
-    proc = _start(["render", "--shader", "osl", "--grid", "3x3", "--size", "192",
-                   "--samples", "256", "--out", str(out)], env={"TMPDIR": str(tmp)})
+    proc = _start(
+        [
+            "render",
+            "--shader",
+            "osl",
+            "--grid",
+            "3x3",
+            "--size",
+            "192",
+            "--samples",
+            "256",
+            "--out",
+            str(out),
+        ],
+        env={"TMPDIR": str(tmp)},
+    )
     _wait_for(proc, "rendering")
     time.sleep(2.0)
     proc.send_signal(sig)
@@ -160,14 +227,13 @@ def test_a_signal_cancels_a_render_within_seconds(tmp_path, sig):
 
 def test_sigterm_during_the_main_job_keeps_the_finished_renders(tmp_path):
     out = tmp_path / "m"
-    proc = _start(["matrix", "--grid", "2x2", "--size", "32", "--samples", "2",
-                   "--out", str(out)])
+    proc = _start(["matrix", "--grid", "2x2", "--size", "32", "--samples", "2", "--out", str(out)])
     _wait_for(proc, "[2/")
     proc.send_signal(signal.SIGTERM)
     _cancelled(proc, time.monotonic())
     first = out / "cook_torrance"
     assert sorted(p.name for p in first.iterdir()) == ["render.exr", "render.png", "scene.json"]
-    read_image(first / "render.exr")                                  # whole
+    read_image(first / "render.exr")  # whole
     assert not [p for p in out.rglob("*") if "partial" in p.name]
     assert not (out / "report.html").exists()
 
@@ -191,8 +257,17 @@ def test_ctrl_c_during_a_plot_writes_nothing(tmp_path):
     """A plot writes its files together at the end: Ctrl-C after its first render leaves
     --out without a file (and no temporary), exit 130, one line."""
     out = tmp_path / "plot"
-    proc = _start(["plot", "--compare", "g=smith_ggx_correlated,energy=compensated",
-                   "--view", "D,F,G,NdotL", "--out", str(out)])
+    proc = _start(
+        [
+            "plot",
+            "--compare",
+            "g=smith_ggx_correlated,energy=compensated",
+            "--view",
+            "D,F,G,NdotL",
+            "--out",
+            str(out),
+        ]
+    )
     _wait_for(proc, "[2/")
     proc.send_signal(signal.SIGINT)
     assert _cancelled(proc, time.monotonic()) < 5
@@ -204,17 +279,24 @@ def test_a_rerun_removes_the_old_report_first(tmp_path, monkeypatch):
     that stops half-way never leaves a report of old numbers beside new images."""
     out = tmp_path / "m"
     out.mkdir()
-    (out / "report.html").write_text("<!DOCTYPE html><html><head><title>Cook-Torrance Lab: "
-                                     "sphere matrix report</title></head>an old run</html>")
+    (out / "report.html").write_text(
+        "<!DOCTYPE html><html><head><title>Cook-Torrance Lab: "
+        "sphere matrix report</title></head>an old run</html>"
+    )
     from addon.jobs import pipeline
 
     def stop_at_the_first_render(*args, **kw):
         raise pipeline.Cancelled()
+
     monkeypatch.setattr(pipeline, "render_one", stop_at_the_first_render)
-    assert cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1",
-                     "--out", str(out)]) == cli.EXIT_CANCELLED
+    assert (
+        cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1", "--out", str(out)])
+        == cli.EXIT_CANCELLED
+    )
     assert not (out / "report.html").exists()
-    (out / "report.html").write_text("<p>a user's own page</p>")     # not ctlab's: kept
-    assert cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1",
-                     "--out", str(out)]) == cli.EXIT_CANCELLED
+    (out / "report.html").write_text("<p>a user's own page</p>")  # not ctlab's: kept
+    assert (
+        cli.main(["matrix", "--grid", "2x2", "--size", "32", "--samples", "1", "--out", str(out)])
+        == cli.EXIT_CANCELLED
+    )
     assert (out / "report.html").read_text() == "<p>a user's own page</p>"

@@ -17,10 +17,25 @@ def test_mirror_metal_in_white_furnace_renders_its_albedo(tmp_path, uniform_hdri
     """Uniform world of radiance 1, Sun off: a smoothness-1 metal of albedo a renders a
     where (1 - n.v)^5 is negligible, rising toward 1 (Schlick) at grazing angles."""
     a = (0.9, 0.5, 0.2)
-    img, scene = render(tmp_path / "r2", view="full", grid=(2, 2), size=64, samples=16,
-                        hdri=uniform_hdri, sun_strength=0.0, albedo=a)
-    normal, _ = render(tmp_path / "n2", view="normal", grid=(2, 2), size=64, hdri=uniform_hdri,
-                       sun_strength=0.0, albedo=a)
+    img, scene = render(
+        tmp_path / "r2",
+        view="full",
+        grid=(2, 2),
+        size=64,
+        samples=16,
+        hdri=uniform_hdri,
+        sun_strength=0.0,
+        albedo=a,
+    )
+    normal, _ = render(
+        tmp_path / "n2",
+        view="normal",
+        grid=(2, 2),
+        size=64,
+        hdri=uniform_hdri,
+        sun_strength=0.0,
+        albedo=a,
+    )
     cell = _cell(scene, 0, 1)
     assert cell["metallic"] == 1.0 and cell["smoothness"] == 1.0
     m = sphere_pixels(scene, cell)
@@ -37,13 +52,14 @@ def test_lambert_dielectric_in_white_furnace_matches_quadrature(tmp_path, unifor
     """Uniform world of radiance 1, Sun off, Lambert diffuse: a pixel reads
     diffColor + E_s(n.v), E_s the specular directional albedo by brute-force quadrature."""
     a = (0.6, 0.6, 0.6)
-    kw = dict(grid=(3, 2), size=96, hdri=uniform_hdri, sun_strength=0.0, albedo=a,
-              diffuse_model="lambert")
+    kw = dict(
+        grid=(3, 2), size=96, hdri=uniform_hdri, sun_strength=0.0, albedo=a, diffuse_model="lambert"
+    )
     img, scene = render(tmp_path / "r", view="full", samples=64, **kw)
     normal, _ = render(tmp_path / "n", view="normal", **kw)
     rng = np.random.default_rng(1)
     for row in range(3):
-        cell = _cell(scene, row, 0)                   # metallic 0, smoothness 1, 0.5, 0
+        cell = _cell(scene, row, 0)  # metallic 0, smoothness 1, 0.5, 0
         m = sphere_pixels(scene, cell, margin_px=3)
         ys, xs = np.nonzero(m)
         ndv_all = normal[ys, xs] @ np.array(scene["to_camera"])
@@ -59,12 +75,17 @@ def test_lambert_dielectric_in_white_furnace_matches_quadrature(tmp_path, unifor
                 x = ndv_all[ring]
                 es = np.mean(0.04 + 0.96 * (1 - x) ** 5)
             else:
-                es = np.mean([specular_albedo(x, a, 0.0, cell["smoothness"], n_theta=400,
-                                              n_phi=200)
-                              for x in rng.choice(ndv_all[ring], size=3)], axis=0)
+                es = np.mean(
+                    [
+                        specular_albedo(x, a, 0.0, cell["smoothness"], n_theta=400, n_phi=200)
+                        for x in rng.choice(ndv_all[ring], size=3)
+                    ],
+                    axis=0,
+                )
             want = 0.96 * np.array(a) + es
-            np.testing.assert_allclose(got, want, rtol=0.02,
-                                       err_msg=f"smoothness {cell['smoothness']} n.v {mu}")
+            np.testing.assert_allclose(
+                got, want, rtol=0.02, err_msg=f"smoothness {cell['smoothness']} n.v {mu}"
+            )
 
 
 def test_reference_ibl_converges_as_one_over_sqrt_samples(tmp_path):
@@ -90,8 +111,14 @@ def test_reference_ibl_converges_as_one_over_sqrt_samples(tmp_path):
 def test_mirror_reflection_matches_principled_under_rotated_hdri(tmp_path):
     """A white smoothness-1 metal is a mirror in both models: the OSL lookup of the HDRI
     (mapping and Mapping-node rotation) must agree with Cycles' Environment Texture."""
-    kw = dict(grid=(2, 2), size=96, samples=32, albedo=(1.0, 1.0, 1.0), sun_strength=0.0,
-              hdri_rotation=math.radians(75.0))
+    kw = dict(
+        grid=(2, 2),
+        size=96,
+        samples=32,
+        albedo=(1.0, 1.0, 1.0),
+        sun_strength=0.0,
+        hdri_rotation=math.radians(75.0),
+    )
     ours, scene = render(tmp_path / "osl", shader="osl", **kw)
     theirs, _ = render(tmp_path / "pbr", shader="principled", principled_distribution="GGX", **kw)
     cell = _cell(scene, 0, 1)

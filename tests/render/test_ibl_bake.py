@@ -32,21 +32,32 @@ def _directions(h, w):
     e = ibl_bake.row_elevations(h)[:, None]
     s = (np.arange(w) + 0.5)[None, :] / w
     phi = (0.5 - s) * 2 * np.pi
-    return np.stack(np.broadcast_arrays(np.cos(e) * np.cos(phi), np.cos(e) * np.sin(phi),
-                                        np.sin(e)), axis=-1)
+    return np.stack(
+        np.broadcast_arrays(np.cos(e) * np.cos(phi), np.cos(e) * np.sin(phi), np.sin(e)), axis=-1
+    )
 
 
 @pytest.fixture(scope="module")
 def forest_bake():
     from addon.blender.paths import bundled_hdri
+
     return ibl_bake.bake(bundled_hdri("forest"))
 
 
 # --- DFG ---------------------------------------------------------------------------------
 
 # (row j: pr = j/(N-1), column i: n.v = i/(N-1)), from near-mirror to rough, grazing to normal
-DFG_ENTRIES = ((12, 40), (12, 63), (20, 12), (32, 3), (32, 30), (48, 3), (48, 50), (63, 20),
-               (63, 63))
+DFG_ENTRIES = (
+    (12, 40),
+    (12, 63),
+    (20, 12),
+    (32, 3),
+    (32, 30),
+    (48, 3),
+    (48, 50),
+    (63, 20),
+    (63, 63),
+)
 
 
 @pytest.mark.parametrize("g_model", G_MODELS)
@@ -58,8 +69,9 @@ def test_dfg_table_matches_brute_force_quadrature(forest_bake, g_model):
     assert table.shape == (N, N, 3)
     for j, i in DFG_ENTRIES:
         nv, pr = i / (N - 1), j / (N - 1)
-        f0_one_and_zero = specular_albedo(nv, np.array([1.0, 0.0, 0.0]), 1.0, 1 - pr,
-                                          g_model=g_model, n_theta=1200, n_phi=600)
+        f0_one_and_zero = specular_albedo(
+            nv, np.array([1.0, 0.0, 0.0]), 1.0, 1 - pr, g_model=g_model, n_theta=1200, n_phi=600
+        )
         a, b, k = table[j, i]
         assert abs(a + b - f0_one_and_zero[0]) < 1e-3, (j, i, a + b, f0_one_and_zero[0])
         assert abs(b - f0_one_and_zero[1]) < 1e-3, (j, i, b, f0_one_and_zero[1])
@@ -82,11 +94,13 @@ def test_smith_directional_albedo_tends_to_one_as_roughness_vanishes(forest_bake
 
 # --- Levels and irradiance ---------------------------------------------------------------
 
+
 def test_uniform_world_bakes_to_ones_and_pi(tmp_path):
     folder = _bake(np.ones((64, 128, 3)), tmp_path / "white.exr")
     info = json.loads((folder / ibl_bake.INFO_FILE).read_text())
     assert [lv["perceptual_roughness"] for lv in info["levels"]] == pytest.approx(
-        [m / 6 for m in range(7)])
+        [m / 6 for m in range(7)]
+    )
     for m in range(ibl_bake.LEVEL_COUNT):
         level = read_image(folder / ibl_bake.level_file(m))
         np.testing.assert_allclose(level, 1.0, atol=1e-5, err_msg=f"level {m}")
@@ -103,8 +117,9 @@ def test_irradiance_of_a_bright_upper_hemisphere_is_the_closed_form(tmp_path):
     irr = read_image(folder / ibl_bake.IRRADIANCE_FILE)
     e = ibl_bake.row_elevations(irr.shape[0])
     want = np.pi * (1 + np.sin(e)) / 2
-    np.testing.assert_allclose(irr[:, :, 1], np.broadcast_to(want[:, None], irr.shape[:2]),
-                               atol=0.01 * np.pi)
+    np.testing.assert_allclose(
+        irr[:, :, 1], np.broadcast_to(want[:, None], irr.shape[:2]), atol=0.01 * np.pi
+    )
 
 
 def test_a_bright_texel_spreads_into_a_ggx_lobe_that_widens_with_roughness(tmp_path):
@@ -131,22 +146,25 @@ def test_a_bright_texel_spreads_into_a_ggx_lobe_that_widens_with_roughness(tmp_p
         if m == 3:
             # its shape is the model's D(h) max(r.l, 0), h = normalize(r + l), carrying the
             # texel's power: P(r) = power K(r.l0) / integral K, the integral by quadrature in mu
-            a2 = (0.5 ** 2) ** 2
+            a2 = (0.5**2) ** 2
 
-            def K(c):
+            def K(c, a2=a2):
                 return a2 / (np.pi * ((1 + c) / 2 * (a2 - 1) + 1) ** 2) * np.maximum(c, 0)
+
             grid = (np.arange(200000) + 0.5) / 200000
             total = 2 * np.pi * np.mean(K(grid))
             near = mu > 0.5
             np.testing.assert_allclose(level[near], phi_total * K(mu[near]) / total, rtol=1e-3)
-    assert all(b > a * 1.05 for a, b in zip(widths, widths[1:])), widths   # rms angle (rad)
+    assert all(b > a * 1.05 for a, b in zip(widths, widths[1:])), widths  # rms angle (rad)
 
 
 # --- Cache, atomicity, bad input ---------------------------------------------------------
 
+
 def test_second_bake_is_a_cache_hit_and_rewrites_nothing(tmp_path, forest_bake):
     messages = []
     from addon.blender.paths import bundled_hdri
+
     before = {p.name: p.stat().st_mtime_ns for p in forest_bake.iterdir()}
     again = ibl_bake.bake(bundled_hdri("forest"), lambda f, m: messages.append(m))
     assert again == forest_bake
@@ -164,19 +182,28 @@ def test_a_failed_bake_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
         if len(calls) == 3:
             raise UserError("disk full (simulated)")
         write_float_exr(p, pixels)
+
     monkeypatch.setattr(ibl_bake, "write_float_exr", failing_write)
     with pytest.raises(UserError, match="simulated"):
         ibl_bake.bake(path)
     cache = ibl_bake.cache.cache_dir()
     from addon.core.hdri import file_hash
-    leftovers = [p.name for p in cache.iterdir() if file_hash(path) in p.name or "partial" in p.name]
+
+    leftovers = [
+        p.name for p in cache.iterdir() if file_hash(path) in p.name or "partial" in p.name
+    ]
     assert leftovers == []
 
 
 def _run_bake(hdri, out, cache):
     env = dict(os.environ, CTLAB_CACHE=str(cache))
-    return subprocess.run(CTLAB + ["bake", str(hdri), "--out", str(out)], capture_output=True,
-                          text=True, env=env, timeout=300)
+    return subprocess.run(
+        CTLAB + ["bake", str(hdri), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
 
 
 def test_bake_rejects_bad_images_with_a_clear_message_and_writes_nothing(tmp_path):
@@ -189,8 +216,9 @@ def test_bake_rejects_bad_images_with_a_clear_message_and_writes_nothing(tmp_pat
         assert len(lines) == 1 and expected in lines[0] and str(path) in lines[0], p.stderr
         assert "Traceback" not in p.stderr
         assert not any(out.iterdir()) if out.exists() else True
-        assert not cache.exists() or not any(p.name.startswith(("ibl-", ".ibl-"))
-                                             for p in cache.iterdir())
+        assert not cache.exists() or not any(
+            p.name.startswith(("ibl-", ".ibl-")) for p in cache.iterdir()
+        )
 
 
 def test_bake_refuses_nan_and_inf_texels_as_the_render_does(tmp_path):
@@ -212,7 +240,8 @@ def test_bake_refuses_nan_and_inf_texels_as_the_render_does(tmp_path):
 
 
 def test_the_cache_misses_on_new_content_at_the_same_path_and_on_new_parameters(
-        tmp_path, monkeypatch):
+    tmp_path, monkeypatch
+):
     """The key is the file's content and the bake's parameters, never its path: rewriting
     the same file, or changing a level's width, bakes anew (and the new level 0 is the new
     content), while an unchanged file and parameters find the first bake."""
@@ -240,9 +269,12 @@ def test_every_level_of_a_real_size_source_against_a_direct_convolution(tmp_path
     h = width // 2
     rng = np.random.default_rng(width)
     yy, xx = np.mgrid[0:h, 0:width]
-    src = (0.5 + 0.3 * np.sin(xx / width * 6 * np.pi)[..., None] * np.cos(yy / h * 3 * np.pi)[..., None]
-           + 0.05 * rng.random((h, width, 3))).astype(np.float32)
-    src[h // 4:h // 4 + 12, width // 3:width // 3 + 20] = 25.0           # a bright patch
+    src = (
+        0.5
+        + 0.3 * np.sin(xx / width * 6 * np.pi)[..., None] * np.cos(yy / h * 3 * np.pi)[..., None]
+        + 0.05 * rng.random((h, width, 3))
+    ).astype(np.float32)
+    src[h // 4 : h // 4 + 12, width // 3 : width // 3 + 20] = 25.0  # a bright patch
     path = tmp_path / f"sky{width}.exr"
     write_float_exr(path, src)
     folder = ibl_bake.bake(path)
@@ -280,25 +312,32 @@ def test_the_shipped_tables_are_what_integrating_them_gives(tmp_path, monkeypatc
     for g in G_MODELS:
         shipped = ibl_bake.shipped_dfg(g)
         assert shipped is not None, "addon/data lacks a DFG table for today's parameters"
-        np.testing.assert_allclose(shipped, ibl_bake.dfg_table(g), rtol=1e-6, atol=1e-7,
-                                   err_msg=g)
+        np.testing.assert_allclose(shipped, ibl_bake.dfg_table(g), rtol=1e-6, atol=1e-7, err_msg=g)
         shipped = ibl_bake.shipped_dominant(g)
         assert shipped is not None, "addon/data lacks a dominant table for today's parameters"
-        np.testing.assert_allclose(shipped, ibl_bake.dominant_table(g), rtol=1e-6, atol=1e-7,
-                                   err_msg=g)
+        np.testing.assert_allclose(
+            shipped, ibl_bake.dominant_table(g), rtol=1e-6, atol=1e-7, err_msg=g
+        )
     monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "empty-cache"))
 
     def no_integration(*args, **kw):
         raise AssertionError("the bake integrated a table it ships")
+
     monkeypatch.setattr(ibl_bake, "dfg_table", no_integration)
     monkeypatch.setattr(ibl_bake, "dominant_table", no_integration)
     path = tmp_path / "sky.exr"
     write_float_exr(path, np.ones((32, 64, 3), np.float32))
     folder = ibl_bake.bake(path)
-    np.testing.assert_allclose(read_image(folder / ibl_bake.dfg_file("cook_torrance")),
-                               ibl_bake.shipped_dfg("cook_torrance"), rtol=1e-7)
-    np.testing.assert_allclose(read_image(folder / ibl_bake.ms_file("unity_smith_joint"))[..., 2],
-                               ibl_bake.shipped_dominant("unity_smith_joint"), rtol=1e-7)
+    np.testing.assert_allclose(
+        read_image(folder / ibl_bake.dfg_file("cook_torrance")),
+        ibl_bake.shipped_dfg("cook_torrance"),
+        rtol=1e-7,
+    )
+    np.testing.assert_allclose(
+        read_image(folder / ibl_bake.ms_file("unity_smith_joint"))[..., 2],
+        ibl_bake.shipped_dominant("unity_smith_joint"),
+        rtol=1e-7,
+    )
 
 
 @pytest.mark.parametrize("g_model", ["cook_torrance", "smith_ggx_correlated"])
@@ -308,6 +347,7 @@ def test_the_dominant_direction_is_the_lobes_centroid(g_model):
     model's f_s (white metal, F = 1). Smith's t at full roughness is 0 (the centroid is n), as
     Lagarde and de Rousiers' fit says; the Cook-Torrance G's is not."""
     from reference_model import terms
+
     table = ibl_bake.dominant_table(g_model)
     n_theta, n_phi = 600, 300
     theta = (np.arange(n_theta) + 0.5) / n_theta * (np.pi / 2)
@@ -315,19 +355,26 @@ def test_the_dominant_direction_is_the_lobes_centroid(g_model):
     T, P = np.meshgrid(theta, phi, indexing="ij")
     l = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1)
     n = np.broadcast_to(np.array([0.0, 0.0, 1.0]), l.shape)
-    for j in (32, 48, 63):                       # pr = j / 63
+    for j in (32, 48, 63):  # pr = j / 63
         pr = j / 63
-        for i in (19, 38, 57):                   # n.v = i / 63
+        for i in (19, 38, 57):  # n.v = i / 63
             mu = i / 63
             v = np.array([np.sqrt(1 - mu * mu), 0.0, mu])
-            fs = terms(n, v, l, np.ones(l.shape), np.ones(T.shape), np.full(T.shape, 1 - pr),
-                       g_model=g_model)["specular_brdf"][..., 0]
+            fs = terms(
+                n,
+                v,
+                l,
+                np.ones(l.shape),
+                np.ones(T.shape),
+                np.full(T.shape, 1 - pr),
+                g_model=g_model,
+            )["specular_brdf"][..., 0]
             w = fs * np.cos(T) * np.sin(T)
             cx, cz = np.sum(w * l[..., 0]), np.sum(w * l[..., 2])
             tan_c = -cx / cz
             want = tan_c / (v[0] + tan_c * (1 - mu))
             assert abs(table[j, i] - np.clip(want, 0, 1)) < 0.02, (pr, mu, table[j, i], want)
     if g_model == "smith_ggx_correlated":
-        assert table[63, :-1].max() < 0.02       # at n.v = 1, r = n: any t, 1 by convention
+        assert table[63, :-1].max() < 0.02  # at n.v = 1, r = n: any t, 1 by convention
     else:
         assert table[63, 32] > 0.15

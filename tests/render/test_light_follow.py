@@ -15,15 +15,16 @@ from addon.core.compare import read_image
 from addon.blender.paths import bundled_hdri
 
 W, H, PX_PER_M = 128, 64, 32.0
-CENTRES = {"principled": -1.0, "cook_torrance": 1.0}      # sphere centres (m) along X
+CENTRES = {"principled": -1.0, "cook_torrance": 1.0}  # sphere centres (m) along X
 RADIUS = 0.8
 
 
 def _scene(implementation="nodes"):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.world = scene_builder.build_world(MatrixSettings(),
-                                            scene_builder.load_image(bundled_hdri("forest")))
+    scene.world = scene_builder.build_world(
+        MatrixSettings(), scene_builder.load_image(bundled_hdri("forest"))
+    )
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     cam.data.type = 'ORTHO'
     cam.data.ortho_scale = W / PX_PER_M
@@ -44,12 +45,13 @@ def _scene(implementation="nodes"):
     bsdf.inputs["Roughness"].default_value = 0.4
     objects = {}
     for name, x in CENTRES.items():
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=RADIUS, location=(x, 0.0, 0.0),
-                                             segments=64, ring_count=32)
+        bpy.ops.mesh.primitive_uv_sphere_add(
+            radius=RADIUS, location=(x, 0.0, 0.0), segments=64, ring_count=32
+        )
         obj = bpy.context.object
         obj.name = name
         bpy.ops.object.shade_smooth()
-        obj.visible_glossy = obj.visible_diffuse = False       # the spheres do not see each other
+        obj.visible_glossy = obj.visible_diffuse = False  # the spheres do not see each other
         obj.data.materials.append(gold if name == "principled" else gold.copy())
         objects[name] = obj
     for obj in bpy.context.selected_objects:
@@ -57,8 +59,8 @@ def _scene(implementation="nodes"):
     objects["cook_torrance"].select_set(True)
     bpy.context.view_layer.objects.active = objects["cook_torrance"]
     assert bpy.ops.ctlab.convert_to_cook_torrance(implementation=implementation) == {'FINISHED'}
-    renderer.configure(scene, implementation, "full", 64)   # no denoising
-    scene.cycles.max_bounces = 0            # direct light: what the model's integrator covers
+    renderer.configure(scene, implementation, "full", 64)  # no denoising
+    scene.cycles.max_bounces = 0  # direct light: what the model's integrator covers
     return scene, sun
 
 
@@ -81,7 +83,7 @@ def test_sun_and_hdri_rotation_change_cook_torrance_like_principled(tmp_path):
         scene, sun = _scene()
         renderer.render(scene, tmp_path / "before", {})
         before = _luminance(read_image(tmp_path / "before" / "render.exr"))
-        sun.rotation_euler = (math.radians(40), math.radians(35), 0.0)        # the usual way
+        sun.rotation_euler = (math.radians(40), math.radians(35), 0.0)  # the usual way
         mapping = next(n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeMapping")
         mapping.inputs["Rotation"].default_value[2] = math.radians(120)
         renderer.render(scene, tmp_path / "after", {})
@@ -90,7 +92,7 @@ def test_sun_and_hdri_rotation_change_cook_torrance_like_principled(tmp_path):
         register.unregister()
     change = {name: _sphere(after, name) - _sphere(before, name) for name in CENTRES}
     p, c = change["principled"], change["cook_torrance"]
-    assert np.abs(p).mean() > 0.2 * _sphere(before, "principled").mean()   # a real change
+    assert np.abs(p).mean() > 0.2 * _sphere(before, "principled").mean()  # a real change
     corr = np.corrcoef(p, c)[0, 1]
     ratio = np.abs(c).mean() / np.abs(p).mean()
     # measured 0.984 and 0.970 on 4.5 and 5.2 (Principled's 64-sample noise is the residue);
@@ -101,6 +103,7 @@ def test_sun_and_hdri_rotation_change_cook_torrance_like_principled(tmp_path):
 def _light(scene, name, kind, location, energy, **props):
     """A light aimed at the origin, as an artist places one."""
     from mathutils import Vector
+
     data = bpy.data.lights.new(name, kind)
     data.energy = energy
     for key, value in props.items():
@@ -121,6 +124,7 @@ def test_a_three_point_setup_changes_cook_torrance_like_principled(tmp_path):
     places differently, so the two spheres take turns at the same place."""
     from addon.blender import model_node, scene_lights
     from addon.core.model import LIGHT_TYPE_CODES
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     register.register()
     try:
@@ -129,26 +133,38 @@ def test_a_three_point_setup_changes_cook_torrance_like_principled(tmp_path):
         spheres = {name: bpy.data.objects[name] for name in CENTRES}
         for obj in spheres.values():
             obj.location = (0.0, 0.0, 0.0)
-        background = next(n for n in scene.world.node_tree.nodes
-                          if n.bl_idname == "ShaderNodeBackground")
+        background = next(
+            n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground"
+        )
         background.inputs["Strength"].default_value = 0.05
-        key = _light(scene, "Key", 'AREA', (-3.0, -4.0, 3.0), 600.0, shape='RECTANGLE',
-                     size=1.5, size_y=1.0)
+        key = _light(
+            scene, "Key", 'AREA', (-3.0, -4.0, 3.0), 600.0, shape='RECTANGLE', size=1.5, size_y=1.0
+        )
         fill = _light(scene, "Fill", 'POINT', (4.0, -3.0, 1.0), 300.0, shadow_soft_size=0.3)
-        rim = _light(scene, "Rim", 'SPOT', (0.5, 4.0, 3.0), 1500.0, spot_size=1.2,
-                     spot_blend=0.3, shadow_soft_size=0.1)
-        bpy.context.view_layer.update()              # the depsgraph handler syncs the slots
+        rim = _light(
+            scene,
+            "Rim",
+            'SPOT',
+            (0.5, 4.0, 3.0),
+            1500.0,
+            spot_size=1.2,
+            spot_blend=0.3,
+            shadow_soft_size=0.1,
+        )
+        bpy.context.view_layer.update()  # the depsgraph handler syncs the slots
         node = model_node.find(spheres["cook_torrance"].active_material)
         # the model in Principled's terms (Smith G, Lambert) and Principled single-scatter, so
         # that what is left is the lights' (the rim light lives at grazing angles, where the
         # Cook-Torrance G and multiple scattering differ most)
         model_node.set_option(node, "g_model", "smith_ggx_correlated")
         model_node.set_option(node, "diffuse_model", "lambert")
-        spheres["principled"].active_material.node_tree.nodes["Principled BSDF"].distribution \
-            = 'GGX'
+        spheres["principled"].active_material.node_tree.nodes[
+            "Principled BSDF"
+        ].distribution = 'GGX'
         types = sorted(scene_lights.slot_type(node, i) for i in (1, 2, 3))
-        assert types == sorted(LIGHT_TYPE_CODES[k] for k in
-                               ("AREA_RECTANGLE", "POINT", "SPOT")), types
+        assert types == sorted(LIGHT_TYPE_CODES[k] for k in ("AREA_RECTANGLE", "POINT", "SPOT")), (
+            types
+        )
 
         def render_both(stage):
             """Each sphere's luminance in 8x8-pixel blocks over its disc (blocks smooth the
@@ -184,7 +200,7 @@ def test_a_three_point_setup_changes_cook_torrance_like_principled(tmp_path):
         register.unregister()
     for first, second in zip(stages, stages[1:]):
         p, c = (second[n] - first[n] for n in CENTRES)
-        assert np.abs(p).mean() > 0.1 * first["principled"].mean()      # a real change
+        assert np.abs(p).mean() > 0.1 * first["principled"].mean()  # a real change
         corr = np.corrcoef(p, c)[0, 1]
         ratio = np.abs(c).mean() / np.abs(p).mean()
         assert corr > 0.95 and 0.9 < ratio < 1.1, (corr, ratio)

@@ -18,8 +18,13 @@ from addon.core.settings import MatrixSettings, cell_center, world_to_pixel
 
 LUM = np.array([0.2126, 0.7152, 0.0722])
 LIGHTS_DIR = ROOT / "docs" / "lights"
-PARITY = dict(g_model="smith_ggx_correlated", diffuse_model="lambert", metallic=1.0,
-              hdri_strength=0.0, mutual_shadows=False)
+PARITY = dict(
+    g_model="smith_ggx_correlated",
+    diffuse_model="lambert",
+    metallic=1.0,
+    hdri_strength=0.0,
+    mutual_shadows=False,
+)
 
 
 def _lights(*items):
@@ -33,8 +38,9 @@ def _file(name):
 def _surface(scene, cell):
     """Per pixel of a sphere (pixel centres inside it, minus a margin): the world point on the
     sphere the orthographic camera (looking along +Y) sees there, and its normal."""
-    s = MatrixSettings(rows=scene["rows"], cols=scene["cols"], width=scene["width"],
-                       height=scene["height"])
+    s = MatrixSettings(
+        rows=scene["rows"], cols=scene["cols"], width=scene["width"], height=scene["height"]
+    )
     mask = sphere_pixels(scene, cell, margin_px=1.5)
     (cx, cy), px_per_m = world_to_pixel(s, cell_center(s, cell["row"], cell["col"]))
     yy, xx = np.nonzero(mask)
@@ -49,6 +55,7 @@ def _surface(scene, cell):
 
 # --- Closed forms --------------------------------------------------------------------------
 
+
 def _lambert_sphere(kind):
     """A white Lambertian sphere's direct diffuse radiance under one delta light, per pixel:
     diffColor/pi E (n.l), E from Cycles' units (Phi/(4 pi d^2), times the spot's smoothstep;
@@ -57,9 +64,14 @@ def _lambert_sphere(kind):
     if kind == "POINT":
         light = dict(type="POINT", energy=phi, location=[0.8, -2.0, 1.0])
     elif kind == "SPOT":
-        light = dict(type="SPOT", energy=phi, location=[0.0, -2.0, 0.3],
-                     rotation_euler=[math.radians(85), 0.0, 0.0], spot_size=0.5,
-                     spot_blend=0.6)
+        light = dict(
+            type="SPOT",
+            energy=phi,
+            location=[0.0, -2.0, 0.3],
+            rotation_euler=[math.radians(85), 0.0, 0.0],
+            spot_size=0.5,
+            spot_blend=0.6,
+        )
     else:
         light = dict(type="SUN", energy=2.0, rotation_euler=[0.7, 0.0, 0.4], angle=0.0)
     return _lights(light)
@@ -75,7 +87,7 @@ def _expected_direct(light, points, normals):
         d = np.array(light.location) - points
         dist = np.linalg.norm(d, axis=1)
         l = d / dist[:, None]
-        E = light.energy / (4 * math.pi * dist ** 2)
+        E = light.energy / (4 * math.pi * dist**2)
         cos = np.sum(normals * l, axis=1)
         if light.type == "SPOT":
             cos_half = math.cos(light.get("spot_size") / 2)
@@ -92,19 +104,33 @@ def test_a_lambertian_sphere_under_a_delta_light_is_the_closed_form(kind, tmp_pa
     more than the bounds (the mesh's facets cost about 1e-3)."""
     lights = _lambert_sphere(kind)
     for shader in ("osl", "nodes"):
-        img, scene = render(tmp_path / shader, shader=shader, view="direct_diffuse", samples=1,
-                            grid=(1, 1), size=96, pixel_centres=True, albedo=(1.0, 1.0, 1.0),
-                            metallic=0.0, diffuse_model="lambert", hdri_strength=0.0,
-                            lights=lights, ibl="split_sum" if shader == "nodes" else
-                            "reference")
+        img, scene = render(
+            tmp_path / shader,
+            shader=shader,
+            view="direct_diffuse",
+            samples=1,
+            grid=(1, 1),
+            size=96,
+            pixel_centres=True,
+            albedo=(1.0, 1.0, 1.0),
+            metallic=0.0,
+            diffuse_model="lambert",
+            hdri_strength=0.0,
+            lights=lights,
+            ibl="split_sum" if shader == "nodes" else "reference",
+        )
         mask, points, normals = _surface(scene, scene["cells"][0])
         want = 0.96 / math.pi * _expected_direct(lights[0], points, normals)
         got = img[mask][:, 1]
         lit = want > 0.05 * want.max()
         rel = np.abs(got[lit] - want[lit]) / want[lit]
         assert lit.sum() > 200, (shader, lit.sum())
-        assert np.median(rel) < 3e-3 and np.percentile(rel, 95) < 2e-2, \
-            (shader, kind, np.median(rel), np.percentile(rel, 95))
+        assert np.median(rel) < 3e-3 and np.percentile(rel, 95) < 2e-2, (
+            shader,
+            kind,
+            np.median(rel),
+            np.percentile(rel, 95),
+        )
         # where the closed form is dark (beyond the terminator or the cone), so is the render
         assert np.abs(got[want == 0]).max(initial=0.0) < 1e-6, shader
 
@@ -125,12 +151,30 @@ def _polygon_irradiance(corners, points, normals):
 def test_a_lambertian_sphere_under_an_area_light_is_lamberts_polygon_formula(tmp_path):
     """The OSL shader samples the rectangle (and the BRDF, MIS): its mean over the lit pixels
     converges to Lambert's closed form with L = Phi/(pi w h)."""
-    light = _lights(dict(type="AREA", energy=100.0, location=[0.3, -1.5, 0.5],
-                         rotation_euler=[math.radians(70), 0.0, math.radians(10)],
-                         shape="RECTANGLE", size=0.8, size_y=0.4))[0]
-    img, scene = render(tmp_path, shader="osl", view="direct_diffuse", samples=64,
-                        grid=(1, 1), size=96, albedo=(1.0, 1.0, 1.0), metallic=0.0,
-                        diffuse_model="lambert", hdri_strength=0.0, lights=(light,))
+    light = _lights(
+        dict(
+            type="AREA",
+            energy=100.0,
+            location=[0.3, -1.5, 0.5],
+            rotation_euler=[math.radians(70), 0.0, math.radians(10)],
+            shape="RECTANGLE",
+            size=0.8,
+            size_y=0.4,
+        )
+    )[0]
+    img, scene = render(
+        tmp_path,
+        shader="osl",
+        view="direct_diffuse",
+        samples=64,
+        grid=(1, 1),
+        size=96,
+        albedo=(1.0, 1.0, 1.0),
+        metallic=0.0,
+        diffuse_model="lambert",
+        hdri_strength=0.0,
+        lights=(light,),
+    )
     mask, points, normals = _surface(scene, scene["cells"][0])
     v = core_lights.slot_values(light)
     c, ax, ay = (np.array(v[k]) for k in ("position", "axis_x", "axis_y"))
@@ -146,6 +190,7 @@ def test_a_lambertian_sphere_under_an_area_light_is_lamberts_polygon_formula(tmp
 
 # --- Against Principled ----------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("name", ["sun", "point", "spot", "area", "mixed"])
 def test_each_light_type_lights_the_model_like_principled(name, tmp_path):
     """The parity configuration (Smith G, Lambert, metallic 1: Principled's single-scatter GGX
@@ -155,8 +200,9 @@ def test_each_light_type_lights_the_model_like_principled(name, tmp_path):
     lights = _file(name)
     common = dict(grid=(3, 3), size=96, samples=64, lights=lights, **PARITY)
     img, scene = render(tmp_path / "model", shader="osl", **common)
-    ref, _ = render(tmp_path / "principled", shader="principled",
-                    principled_distribution="GGX", **common)
+    ref, _ = render(
+        tmp_path / "principled", shader="principled", principled_distribution="GGX", **common
+    )
     for cell in scene["cells"]:
         m = sphere_pixels(scene, cell)
         a, b = (img[m] @ LUM).mean(), (ref[m] @ LUM).mean()
@@ -171,13 +217,30 @@ def test_soft_shadows_converge_to_principleds(tmp_path):
     """An area light low beside a row of spheres that shadow each other (mutual shadows on):
     the penumbrae come from shadow rays toward points sampled on the light. The luminance per
     sphere matches Principled's, and the pixel error shrinks as the samples grow."""
-    lights = _lights(dict(type="AREA", energy=400.0, location=[4.0, -0.6, 0.0],
-                          rotation_euler=[0.0, math.radians(80), 0.0], shape="SQUARE",
-                          size=1.2))
-    common = dict(grid=(1, 3), size=96, lights=lights, mutual_shadows=True,
-                  **{k: v for k, v in PARITY.items() if k != "mutual_shadows"})
-    ref, scene = render(tmp_path / "principled", shader="principled", samples=1024,
-                        principled_distribution="GGX", **common)
+    lights = _lights(
+        dict(
+            type="AREA",
+            energy=400.0,
+            location=[4.0, -0.6, 0.0],
+            rotation_euler=[0.0, math.radians(80), 0.0],
+            shape="SQUARE",
+            size=1.2,
+        )
+    )
+    common = dict(
+        grid=(1, 3),
+        size=96,
+        lights=lights,
+        mutual_shadows=True,
+        **{k: v for k, v in PARITY.items() if k != "mutual_shadows"},
+    )
+    ref, scene = render(
+        tmp_path / "principled",
+        shader="principled",
+        samples=1024,
+        principled_distribution="GGX",
+        **common,
+    )
     errors = {}
     for spp in (8, 256):
         img, _ = render(tmp_path / f"model{spp}", shader="osl", samples=spp, **common)
@@ -203,8 +266,14 @@ def test_env_visibility_does_not_over_occlude(tmp_path):
     occlusion leaves every sphere as it was (OSL's trace() sees every object the camera sees,
     so the neighbours took up to 14% from rough metals). A lone sphere's own rays, which may
     leave under a facet of its smooth-shaded mesh, do not darken it either."""
-    common = dict(grid=(3, 3), size=96, samples=32, hdri_strength=1.0, lights=(),
-                  **{k: v for k, v in PARITY.items() if k != "hdri_strength"})
+    common = dict(
+        grid=(3, 3),
+        size=96,
+        samples=32,
+        hdri_strength=1.0,
+        lights=(),
+        **{k: v for k, v in PARITY.items() if k != "hdri_strength"},
+    )
     off, scene = render(tmp_path / "off", shader="osl", **common)
     on, _ = render(tmp_path / "on", shader="osl", env_visibility=True, **common)
     for cell in scene["cells"]:
@@ -225,16 +294,30 @@ def test_the_node_group_equals_the_osl_shader_for_delta_lights(tmp_path):
     with E = Phi cos/(pi d^2 + A), stays within 5% on the spheres of smoothness 0.5 and 0 at
     these distances (a mirror's highlight of a point is too small for the samples: there the
     node group is darker, see docs/model.md "Lights")."""
-    delta = _lights(dict(type="POINT", energy=300.0, location=[1.5, -3.0, 1.0]),
-                    dict(type="SPOT", energy=800.0, location=[-1.0, -3.0, 0.0],
-                         rotation_euler=[math.radians(80), 0, math.radians(-15)],
-                         spot_size=1.0, spot_blend=0.4),
-                    dict(type="SUN", energy=1.5, rotation_euler=[0.5, 0.2, 0.3], angle=0.0))
+    delta = _lights(
+        dict(type="POINT", energy=300.0, location=[1.5, -3.0, 1.0]),
+        dict(
+            type="SPOT",
+            energy=800.0,
+            location=[-1.0, -3.0, 0.0],
+            rotation_euler=[math.radians(80), 0, math.radians(-15)],
+            spot_size=1.0,
+            spot_blend=0.4,
+        ),
+        dict(type="SUN", energy=1.5, rotation_euler=[0.5, 0.2, 0.3], angle=0.0),
+    )
     area = _file("area")
     for name, lights, bound in (("delta", delta, 1e-4), ("area", area, 0.05)):
-        common = dict(grid=(3, 3), size=64, samples=1 if name == "delta" else 64,
-                      pixel_centres=name == "delta", lights=lights, hdri_strength=0.0,
-                      view="direct", sun_shadow=False)
+        common = dict(
+            grid=(3, 3),
+            size=64,
+            samples=1 if name == "delta" else 64,
+            pixel_centres=name == "delta",
+            lights=lights,
+            hdri_strength=0.0,
+            view="direct",
+            sun_shadow=False,
+        )
         a, scene = render(tmp_path / f"osl-{name}", shader="osl", **common)
         b, _ = render(tmp_path / f"nodes-{name}", shader="nodes", ibl="split_sum", **common)
         for cell in scene["cells"]:
@@ -247,10 +330,13 @@ def test_the_node_group_equals_the_osl_shader_for_delta_lights(tmp_path):
 
 # --- Drivers ---------------------------------------------------------------------------------
 
+
 def _socket_value(node, slot, field):
     sock = node.inputs[BY_KEY[light_key(slot, field)].label]
     v = sock.default_value
     return tuple(v)[:3] if hasattr(v, "__len__") else v
+
+
 @pytest.mark.parametrize("impl", ["osl", "nodes"])
 def test_drivers_keep_every_slot_as_core_lights_computes_it(impl):
     """Light objects made from docs/lights/mixed.json, then moved, turned, scaled, recoloured
@@ -264,11 +350,12 @@ def test_drivers_keep_every_slot_as_core_lights_computes_it(impl):
         obj = scene_lights.new_light_object(light, light.name)
         scene.collection.objects.link(obj)
         objects.append(obj)
-    mat = materials.model_material("drivers", impl, ModelOptions(
-        ibl="split_sum" if impl == "nodes" else "reference"))
+    mat = materials.model_material(
+        "drivers", impl, ModelOptions(ibl="split_sum" if impl == "nodes" else "reference")
+    )
     node = model_node.find(mat)
     holder = bpy.data.objects.new("holder", bpy.data.meshes.new("holder"))
-    holder.data.materials.append(mat)            # the depsgraph evaluates what the scene uses
+    holder.data.materials.append(mat)  # the depsgraph evaluates what the scene uses
     scene.collection.objects.link(holder)
     scene_lights.sync_slots(mat.node_tree, node, objects)
     edited = []
@@ -286,10 +373,20 @@ def test_drivers_keep_every_slot_as_core_lights_computes_it(impl):
         if light.type == "SPOT":
             obj.data.spot_size, obj.data.spot_blend = 0.6, 0.25
             extra.update(spot_size=0.6, spot_blend=0.25)
-        edited.append(core_lights.Light(
-            type=light.type, energy=10.0 + k, name=light.name, location=tuple(obj.location),
-            rotation_euler=tuple(obj.rotation_euler), scale=tuple(obj.scale),
-            color=(0.2, 0.5, 0.9), exposure=0.5, use_shadow=light.use_shadow, extra=extra))
+        edited.append(
+            core_lights.Light(
+                type=light.type,
+                energy=10.0 + k,
+                name=light.name,
+                location=tuple(obj.location),
+                rotation_euler=tuple(obj.rotation_euler),
+                scale=tuple(obj.scale),
+                color=(0.2, 0.5, 0.9),
+                exposure=0.5,
+                use_shadow=light.use_shadow,
+                extra=extra,
+            )
+        )
     scene.frame_set(scene.frame_current)
     for slot, light in enumerate(edited, start=1):
         want = core_lights.slot_values(light)
@@ -297,12 +394,22 @@ def test_drivers_keep_every_slot_as_core_lights_computes_it(impl):
             if field == "shadow" and impl == "nodes":
                 continue
             got = _socket_value(node, slot, field)
-            assert np.allclose(got, want[field], rtol=1e-5, atol=1e-5), \
-                (light.name, field, got, want[field])
+            assert np.allclose(got, want[field], rtol=1e-5, atol=1e-5), (
+                light.name,
+                field,
+                got,
+                want[field],
+            )
+
+
 def test_the_lights_files_in_docs_are_valid_and_ranked_suns_first():
-    kinds = {path.stem: [(x.type, x.get("shape") if x.type == "AREA" else None)
-                         for x in core_lights.read_lights(path)]
-             for path in sorted(LIGHTS_DIR.glob("*.json"))}
+    kinds = {
+        path.stem: [
+            (x.type, x.get("shape") if x.type == "AREA" else None)
+            for x in core_lights.read_lights(path)
+        ]
+        for path in sorted(LIGHTS_DIR.glob("*.json"))
+    }
     for name in ("sun", "point", "spot", "area"):
         assert [k for k, _ in kinds[name]] == [name.upper()], kinds[name]
     assert len(kinds["mixed"]) == 8 and {k for k, _ in kinds["mixed"]} == set(core_lights.TYPES)
@@ -311,6 +418,8 @@ def test_the_lights_files_in_docs_are_valid_and_ranked_suns_first():
     assert ranked[0].type == "SUN"
     powers = [sum(w * c for w, c in zip(LUM, light.power())) for light in ranked[1:]]
     assert powers == sorted(powers, reverse=True)
+
+
 def test_the_slots_go_to_the_lights_that_render_suns_first_then_the_brightest():
     """Which lights the model shades (docs/model.md "Lights"): those that render in the view
     layer (not hidden from rendering, not in an excluded or render-disabled collection), the key
@@ -323,6 +432,7 @@ def test_the_slots_go_to_the_lights_that_render_suns_first_then_the_brightest():
         obj.data.energy = energy
         (collection or scene.collection).objects.link(obj)
         return obj
+
     key = light("Key", 'SUN', 3.0)
     for i in range(2):
         light(f"Sun {i}", "SUN", 0.1)

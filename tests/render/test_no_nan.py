@@ -18,14 +18,23 @@ from addon.core.settings import MatrixSettings
 
 PEAK = 1.0e6
 BOUNDED = {  # view -> largest value the formulas allow
-    "F": 1.0, "G": 1.0, "NdotL": 1.0, "NdotV": 1.0, "NdotH": 1.0, "VdotH": 1.0,
-    "albedo": 1.0, "spec_color": 1.0, "normal": 1.0,
-    "D": 1.0 / (np.pi * MIN_ALPHA ** 2),
+    "F": 1.0,
+    "G": 1.0,
+    "NdotL": 1.0,
+    "NdotV": 1.0,
+    "NdotH": 1.0,
+    "VdotH": 1.0,
+    "albedo": 1.0,
+    "spec_color": 1.0,
+    "normal": 1.0,
+    "D": 1.0 / (np.pi * MIN_ALPHA**2),
     # diffuse BRDF: diffColor (<= 0.96) x Disney's retro-reflection (<= 2.5 x 2.5) / pi
     "diffuse_brdf": 0.96 * 2.5 * 2.5 / np.pi,
     # indirect light: the brightest incident radiance x the largest directional albedo
     # (specular <= 1 (tests/slow/test_energy.py), Disney diffuse <= 0.96 x 1.5)
-    "indirect": 2.5 * PEAK, "indirect_specular": 1.0 * PEAK, "indirect_diffuse": 1.5 * PEAK,
+    "indirect": 2.5 * PEAK,
+    "indirect_specular": 1.0 * PEAK,
+    "indirect_diffuse": 1.5 * PEAK,
 }
 
 
@@ -65,9 +74,15 @@ def _random_normals(tree, node):
 def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spike_hdri, shader):
     rng = np.random.default_rng(7 if shader == "osl" else 8)
     s = MatrixSettings(
-        rows=4, cols=4, width=32, height=32, hdri=str(spike_hdri), shader=shader,
-        sun_strength=3.0, model=ModelOptions(ibl="reference" if shader == "osl" else "split_sum",
-                                             env_samples=1))
+        rows=4,
+        cols=4,
+        width=32,
+        height=32,
+        hdri=str(spike_hdri),
+        shader=shader,
+        sun_strength=3.0,
+        model=ModelOptions(ibl="reference" if shader == "osl" else "split_sum", env_samples=1),
+    )
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     description = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
@@ -79,7 +94,7 @@ def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spik
         obj[materials.PROP_ALBEDO] = list(rng.choice([0.0, 1.0, -0.5, 1.7, rng.random()], 3))
         obj[materials.PROP_METALLIC] = float(rng.choice([0.0, 1.0, -0.2, 1.3, rng.random()]))
         obj[materials.PROP_SMOOTHNESS] = float(rng.choice([0.0, 1.0, -0.1, 1.2, rng.random()]))
-    spheres[0][materials.PROP_ALBEDO] = [0.0, 0.0, 0.0]        # a black metal mirror
+    spheres[0][materials.PROP_ALBEDO] = [0.0, 0.0, 0.0]  # a black metal mirror
     spheres[0][materials.PROP_METALLIC], spheres[0][materials.PROP_SMOOTHNESS] = 1.0, 1.0
     _random_normals(mat.node_tree, node)
     sun = next(o for o in scene.objects if o.type == 'LIGHT')
@@ -92,7 +107,7 @@ def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spik
             node.inputs["Seed"].default_value = k
         d = rng.normal(size=3)
         if k % 3 == 0:
-            d[2] = -abs(d[2])                         # below the horizon
+            d[2] = -abs(d[2])  # below the horizon
         sun.rotation_mode = 'QUATERNION'
         sun.rotation_quaternion = Vector(d).to_track_quat('Z', 'Y')
         renderer.configure(scene, shader, view, 2, seed=k, pixel_centres=True)
@@ -102,8 +117,9 @@ def test_random_inputs_normals_and_suns_give_finite_bounded_views(tmp_path, spik
         if view != "normal":
             assert img.min() >= 0.0, f"{shader} view {view}: negative {img.min()}"
         if view in BOUNDED:
-            assert np.abs(img).max() <= BOUNDED[view] * (1 + 1e-4), \
+            assert np.abs(img).max() <= BOUNDED[view] * (1 + 1e-4), (
                 f"{shader} view {view}: {np.abs(img).max()} > {BOUNDED[view]}"
+            )
 
 
 @pytest.mark.parametrize("shader", ["osl", "nodes"])
@@ -112,20 +128,47 @@ def test_lights_at_their_limits_give_finite_views(tmp_path, shader):
     than the scene, a Spot of 1 degree with no blend, a Sun of angle pi, a tiny Area light and
     an Area light seen from behind, all at once, every view: finite and not negative."""
     from addon.core.lights import parse_light
-    lights = tuple(parse_light(item, "limits") for item in (
-        dict(type="POINT", energy=1e6, location=[-0.5, -0.4201, 0.5]),    # 0.1 mm off a sphere
-        dict(type="POINT", energy=100.0, location=[1.0, -1.0, 1.0], shadow_soft_size=1e3),
-        dict(type="SPOT", energy=1e5, location=[0.5, -3.0, -0.5], rotation_euler=[1.5708, 0, 0],
-             spot_size=0.0175, spot_blend=0.0, shadow_soft_size=0.5),
-        dict(type="SUN", energy=10.0, rotation_euler=[0.3, 0.2, 0.1], angle=3.14159),
-        dict(type="AREA", energy=1e3, location=[0.5, -0.5, 0.5], size=1e-6),
-        dict(type="AREA", energy=1e3, location=[0.0, -2.0, 0.0], rotation_euler=[-1.5708, 0, 0],
-             shape="ELLIPSE", size=2.0, size_y=1e-3),
-    ))
-    s = MatrixSettings(rows=2, cols=2, width=32, height=32, shader=shader, lights=lights,
-                       model=ModelOptions(ibl="reference" if shader == "osl" else "split_sum",
-                                          env_samples=1, energy="compensated"))
+
+    lights = tuple(
+        parse_light(item, "limits")
+        for item in (
+            dict(type="POINT", energy=1e6, location=[-0.5, -0.4201, 0.5]),  # 0.1 mm off a sphere
+            dict(type="POINT", energy=100.0, location=[1.0, -1.0, 1.0], shadow_soft_size=1e3),
+            dict(
+                type="SPOT",
+                energy=1e5,
+                location=[0.5, -3.0, -0.5],
+                rotation_euler=[1.5708, 0, 0],
+                spot_size=0.0175,
+                spot_blend=0.0,
+                shadow_soft_size=0.5,
+            ),
+            dict(type="SUN", energy=10.0, rotation_euler=[0.3, 0.2, 0.1], angle=3.14159),
+            dict(type="AREA", energy=1e3, location=[0.5, -0.5, 0.5], size=1e-6),
+            dict(
+                type="AREA",
+                energy=1e3,
+                location=[0.0, -2.0, 0.0],
+                rotation_euler=[-1.5708, 0, 0],
+                shape="ELLIPSE",
+                size=2.0,
+                size_y=1e-3,
+            ),
+        )
+    )
+    s = MatrixSettings(
+        rows=2,
+        cols=2,
+        width=32,
+        height=32,
+        shader=shader,
+        lights=lights,
+        model=ModelOptions(
+            ibl="reference" if shader == "osl" else "split_sum", env_samples=1, energy="compensated"
+        ),
+    )
     from addon.jobs import pipeline
+
     dirs = {view: tmp_path / view for view in VIEWS}
     pipeline.render_views(s, dirs, 2, pixel_centres=True)
     for view, folder in dirs.items():

@@ -13,13 +13,15 @@ ALL_VIEWS = TERM_VIEWS + LIGHTING_VIEWS
 # (model, the views it changes): the second case flips every switch
 CASES = {
     "seed": (dict(), ALL_VIEWS),
-    "smith_lambert_unity": (dict(g_model="smith_ggx_correlated", diffuse_model="lambert",
-                                 units="unity", ibl="unity"),
-                            ("NdotH", "G", "specular_brdf", "diffuse_brdf") + LIGHTING_VIEWS),
+    "smith_lambert_unity": (
+        dict(g_model="smith_ggx_correlated", diffuse_model="lambert", units="unity", ibl="unity"),
+        ("NdotH", "G", "specular_brdf", "diffuse_brdf") + LIGHTING_VIEWS,
+    ),
     # Unity's G, energy compensation, the split-sum toward the dominant direction
-    "unity_compensated": (dict(g_model="unity_smith_joint", energy="compensated",
-                               ibl="split_sum_corrected"),
-                          ("NdotH", "G", "specular_brdf") + LIGHTING_VIEWS),
+    "unity_compensated": (
+        dict(g_model="unity_smith_joint", energy="compensated", ibl="split_sum_corrected"),
+        ("NdotH", "G", "specular_brdf") + LIGHTING_VIEWS,
+    ),
 }
 # The least relative tolerance of the views with the multiple-scattering lobe: it reads E(n.l)
 # from a table through OSL's texture() in one, an Environment Texture in the other (rounding of
@@ -27,8 +29,15 @@ CASES = {
 MS_TOLERANCE = {"unity_compensated": 3e-4}
 MS_VIEWS = ("specular_brdf", "direct_specular", "direct")
 # no Sun shadow: the node group cannot trace one (docs/model.md "Lighting")
-SCENE = dict(grid=(3, 4), size=64, samples=1, pixel_centres=True, sun_shadow=False,
-             albedo=(1.0, 0.766, 0.336), sun_to_light=(-0.3, -0.6, 0.74))
+SCENE = dict(
+    grid=(3, 4),
+    size=64,
+    samples=1,
+    pixel_centres=True,
+    sun_shadow=False,
+    albedo=(1.0, 0.766, 0.336),
+    sun_to_light=(-0.3, -0.6, 0.74),
+)
 
 
 @pytest.fixture(scope="module", params=list(CASES))
@@ -56,7 +65,7 @@ def _tolerance(view, osl, mask, alpha, ms=0.0):
     if view in ("D", "specular_brdf", "direct_specular", "direct", "full"):
         nh = osl["NdotH"][mask][:, 0].astype(np.float64)
         a2 = alpha[mask] ** 2
-        cond = 4 * nh ** 2 * np.abs(a2 - 1) / (nh ** 2 * (a2 - 1) + 1) * 3e-7
+        cond = 4 * nh**2 * np.abs(a2 - 1) / (nh**2 * (a2 - 1) + 1) * 3e-7
         tol = np.maximum(tol, cond[:, None] * want)
     return tol
 
@@ -69,8 +78,10 @@ def test_term_and_direct_views_equal_the_osl_shader(both, view):
     got = nodes[view][mask].astype(np.float64)
     want = osl[view][mask].astype(np.float64)
     bad = np.abs(got - want) > _tolerance(view, osl, mask, alpha, ms)
-    assert not bad.any(), (f"{view}: {int(bad.sum())} of {bad.size} values differ; "
-                           f"nodes {got[bad][:3]} osl {want[bad][:3]}")
+    assert not bad.any(), (
+        f"{view}: {int(bad.sum())} of {bad.size} values differ; "
+        f"nodes {got[bad][:3]} osl {want[bad][:3]}"
+    )
 
 
 @pytest.mark.parametrize("view", ("indirect_diffuse", "indirect_specular", "full"))
@@ -83,7 +94,9 @@ def test_baked_indirect_light_agrees_with_the_osl_shader(both, view):
     want = osl[view][mask].astype(np.float64)
     rel = np.abs(got - want) / np.maximum(np.abs(want), 1e-4)
     assert np.median(rel) < 1e-4 and np.percentile(rel, 99) < 5e-3, (
-        np.median(rel), np.percentile(rel, 99))
+        np.median(rel),
+        np.percentile(rel, 99),
+    )
     assert abs(got.mean() - want.mean()) < 1e-3 * want.mean()
 
 
@@ -93,9 +106,11 @@ def _user_scene(tmp_path):
     import bpy
     from addon.blender import renderer, scene_builder
     from addon.blender.paths import bundled_hdri
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     from addon.core.settings import MatrixSettings
+
     s = MatrixSettings(width=64, height=64)
     scene.world = scene_builder.build_world(s, scene_builder.load_image(bundled_hdri("forest")))
     bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, radius=1.0)
@@ -131,6 +146,7 @@ def _user_material(group, albedo, normal):
     """Image Texture -> Albedo, Image Texture -> Normal Map -> Normal, group -> Material Output,
     as an artist wires it in the shader editor."""
     import bpy
+
     mat = bpy.data.materials.new("User Material")
     compat.use_nodes(mat)
     nt = mat.node_tree
@@ -160,17 +176,27 @@ def test_group_works_in_a_users_own_material(tmp_path):
     from addon.core import ibl_bake
     from addon.core.compare import read_image
     from addon.core.model import Lighting, ModelOptions
+
     scene, sphere, albedo, normal, renderer = _user_scene(tmp_path)
     bake = ibl_bake.bake(bundled_hdri("forest"))
     group = node_group.build_group()
     node_group.set_bake(group, bake)
     user, g = _user_material(group, albedo, normal)
-    lighting = Lighting(sun_to_light=(-0.4, -0.6, 0.7), sun_irradiance=(2, 2, 2),
-                        ibl_bake=str(bake))
+    lighting = Lighting(
+        sun_to_light=(-0.4, -0.6, 0.7), sun_irradiance=(2, 2, 2), ibl_bake=str(bake)
+    )
     model_node.set_lighting(g, lighting)
-    osl = materials.model_material("OSL twin", "osl", ModelOptions(ibl="split_sum"), lighting,
-                                   albedo=(0, 0, 0), metallic=0.3, smoothness=0.6,
-                                   albedo_image=albedo, normal_map=normal)
+    osl = materials.model_material(
+        "OSL twin",
+        "osl",
+        ModelOptions(ibl="split_sum"),
+        lighting,
+        albedo=(0, 0, 0),
+        metallic=0.3,
+        smoothness=0.6,
+        albedo_image=albedo,
+        normal_map=normal,
+    )
     images = {}
     for name, mat, shader in (("nodes", user, "nodes"), ("osl", osl, "osl")):
         sphere.data.materials.clear()
@@ -186,7 +212,7 @@ def test_group_works_in_a_users_own_material(tmp_path):
     ys, xs = np.mgrid[0:64, 0:64]
     centre[(xs + 0.5 - 32) ** 2 + (ys + 0.5 - 32) ** 2 < (0.9 * 32 / 1.2) ** 2] = True
     tilted = images["osl", "normal"][centre] @ np.array([0, -1, 0])
-    assert np.std(images["osl", "albedo"][centre][:, 0]) > 0.05    # the texture is there
+    assert np.std(images["osl", "albedo"][centre][:, 0]) > 0.05  # the texture is there
     for view in ("albedo", "normal", "D"):
         a, b = images["nodes", view][centre], images["osl", view][centre]
         np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-5, err_msg=view)
@@ -205,10 +231,17 @@ def test_drivers_keep_the_key_light_in_sync_with_the_sun(tmp_path):
     from addon.core.compare import read_image
     from addon.core.model import ModelOptions
     from addon.core.settings import MatrixSettings
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    s = MatrixSettings(rows=1, cols=2, width=48, height=48, shader="nodes",
-                       model=ModelOptions(view="NdotL", ibl="split_sum"))
+    s = MatrixSettings(
+        rows=1,
+        cols=2,
+        width=48,
+        height=48,
+        shader="nodes",
+        model=ModelOptions(view="NdotL", ibl="split_sum"),
+    )
     described = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     sun = next(o for o in scene.objects if o.type == 'LIGHT')
     new_dir = Vector((0.6, -0.5, 0.3)).normalized()
@@ -228,7 +261,7 @@ def test_drivers_keep_the_key_light_in_sync_with_the_sun(tmp_path):
     want = np.clip(images["normal"][m] @ np.array(new_dir), 0, 1)
     np.testing.assert_allclose(images["NdotL"][m][:, 0], want, atol=1e-5)
     irr = tuple(node.inputs["Sun Irradiance"].default_value)[:3]
-    assert irr == pytest.approx((3.0, 3.0, 3.0))       # the driver wrote the new strength
+    assert irr == pytest.approx((3.0, 3.0, 3.0))  # the driver wrote the new strength
 
 
 EEVEE_VIEWS = ("F", "NdotV", "albedo", "diffuse_brdf", "G", "indirect_diffuse", "full")
@@ -256,7 +289,10 @@ def test_eevee_renders_the_group_like_cycles(tmp_path):
             assert rel.max() < 3e-3, (view, rel.max())
         else:
             assert np.median(rel) < 1e-3 and np.percentile(rel, 95) < 0.1, (
-                view, np.median(rel), np.percentile(rel, 95))
+                view,
+                np.median(rel),
+                np.percentile(rel, 95),
+            )
             assert abs(b.mean() - a.mean()) < 1e-2 * a.mean(), (view, a.mean(), b.mean())
 
 
@@ -264,6 +300,7 @@ def _sky_with_distinct_poles(path, w):
     """A w x w/2 lat-long sky of radiance 1 + 0.9 sin(elevation): 1.9 at the top row, 0.1 at
     the bottom, so a lookup that wraps from one pole to the other is far off."""
     from addon.core.hdri import write_float_exr
+
     h = w // 2
     e = (0.5 - (np.arange(h) + 0.5) / h) * np.pi
     sky = np.repeat((1 + 0.9 * np.sin(e))[:, None], w, axis=1)
@@ -280,8 +317,16 @@ def test_lookups_clamp_at_the_poles(tmp_path):
     3.2e-5 of the OSL shader (bound 1e-3); without the clamp (mutation), 12 pixels near the
     zenith blend in the bottom row, up to 96% off."""
     hdri = _sky_with_distinct_poles(tmp_path / "sky.exr", 256)
-    kw = dict(view=("indirect_specular", "indirect_diffuse"), grid=(2, 1), size=192, samples=1,
-              pixel_centres=True, sun_strength=0.0, hdri=str(hdri), ibl="split_sum")
+    kw = dict(
+        view=("indirect_specular", "indirect_diffuse"),
+        grid=(2, 1),
+        size=192,
+        samples=1,
+        pixel_centres=True,
+        sun_strength=0.0,
+        hdri=str(hdri),
+        ibl="split_sum",
+    )
     osl, scene = render(tmp_path / "osl", shader="osl", **kw)
     nodes, _ = render(tmp_path / "nodes", shader="nodes", **kw)
     m = np.zeros((scene["height"], scene["width"]), dtype=bool)
@@ -305,11 +350,19 @@ def test_the_value_output_is_the_emission_output(tmp_path):
     from addon.core.compare import read_image
     from addon.core.model import ModelOptions
     from addon.core.settings import MatrixSettings
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    s = MatrixSettings(rows=3, cols=3, width=72, height=72, shader="nodes",
-                       sun_to_light=(0.6, 0.3, 0.5), sun_strength=3.0,
-                       model=ModelOptions(view="full", ibl="split_sum"))
+    s = MatrixSettings(
+        rows=3,
+        cols=3,
+        width=72,
+        height=72,
+        shader="nodes",
+        sun_to_light=(0.6, 0.3, 0.5),
+        sun_strength=3.0,
+        model=ModelOptions(view="full", ibl="split_sum"),
+    )
     described = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
     node = model_node.find(mat)
@@ -319,8 +372,10 @@ def test_the_value_output_is_the_emission_output(tmp_path):
     nt.links.new(node.outputs["Value"], colour.inputs["Color"])
     images = {}
     for output in ("Emission", "Value"):
-        nt.links.new(node.outputs["Emission"] if output == "Emission" else colour.outputs[0],
-                     out.inputs["Surface"])
+        nt.links.new(
+            node.outputs["Emission"] if output == "Emission" else colour.outputs[0],
+            out.inputs["Surface"],
+        )
         for ibl in ("split_sum", "unity"):
             for view in ("full", "direct", "indirect", "indirect_specular"):
                 model_node.set_options(node, ModelOptions(view=view, ibl=ibl))
@@ -332,11 +387,16 @@ def test_the_value_output_is_the_emission_output(tmp_path):
     for cell in described["cells"]:
         m |= sphere_pixels(described, cell)
     lit = images["Value", "split_sum", "direct"][m].max(axis=1) > 0
-    assert 0.1 < lit.mean() < 0.9          # the gate is open at some pixels, shut at others
+    assert 0.1 < lit.mean() < 0.9  # the gate is open at some pixels, shut at others
     for (output, ibl, view), img in images.items():
         if output == "Value":
-            np.testing.assert_allclose(images["Emission", ibl, view][m], img[m], rtol=1e-4,
-                                       atol=1e-6, err_msg=f"{ibl} {view}")
+            np.testing.assert_allclose(
+                images["Emission", ibl, view][m],
+                img[m],
+                rtol=1e-4,
+                atol=1e-6,
+                err_msg=f"{ibl} {view}",
+            )
 
 
 def test_a_flat_floor_reads_the_pole_like_the_osl_shader(tmp_path):
@@ -351,6 +411,7 @@ def test_a_flat_floor_reads_the_pole_like_the_osl_shader(tmp_path):
     from addon.core import ibl_bake
     from addon.core.compare import read_image
     from addon.core.model import Lighting, ModelOptions
+
     for w in (256, 4096):
         bake = ibl_bake.bake(_sky_with_distinct_poles(tmp_path / f"sky{w}.exr", w))
         bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -367,14 +428,21 @@ def test_a_flat_floor_reads_the_pole_like_the_osl_shader(tmp_path):
         lighting = Lighting(sun_irradiance=(0, 0, 0), ibl_bake=str(bake))
         got = {}
         for impl in ("osl", "nodes"):
-            mat = materials.model_material(f"floor {impl}", impl, ModelOptions(ibl="split_sum"),
-                                           lighting, albedo=(0.8, 0.8, 0.8), metallic=0.0,
-                                           smoothness=1.0)
+            mat = materials.model_material(
+                f"floor {impl}",
+                impl,
+                ModelOptions(ibl="split_sum"),
+                lighting,
+                albedo=(0.8, 0.8, 0.8),
+                metallic=0.0,
+                smoothness=1.0,
+            )
             floor.data.materials.clear()
             floor.data.materials.append(mat)
             for view in ("indirect_diffuse", "indirect_specular"):
-                model_node.set_options(model_node.find(mat),
-                                       ModelOptions(view=view, ibl="split_sum"))
+                model_node.set_options(
+                    model_node.find(mat), ModelOptions(view=view, ibl="split_sum")
+                )
                 renderer.configure(scene, impl, view, 1, pixel_centres=True)
                 out = tmp_path / f"{w}-{impl}-{view}"
                 renderer.render(scene, out, {}, log_path=tmp_path / "log.txt")

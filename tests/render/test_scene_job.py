@@ -19,7 +19,7 @@ import pytest
 from helpers import ROOT
 
 CTLAB = [sys.executable, str(ROOT / "scripts" / "ctlab.py")]
-SIZE, SAMPLES = 80, 16            # 80 x 60 px (the file's 4:3), 16 samples: ~10 s a job
+SIZE, SAMPLES = 80, 16  # 80 x 60 px (the file's 4:3), 16 samples: ~10 s a job
 
 # The scene: the camera at CAM looks at the sphere's centre, so the sphere's outline is a
 # circle centred in the image (the projected-area check below).
@@ -146,16 +146,25 @@ BUILD = textwrap.dedent(r'''
 @pytest.fixture(scope="module")
 def blends(tmp_path_factory):
     folder = tmp_path_factory.mktemp("blends")
-    p = subprocess.run([sys.executable, "-c", BUILD, str(ROOT), str(folder)],
-                       capture_output=True, text=True, timeout=120,
-                       env=dict(os.environ))
+    p = subprocess.run(
+        [sys.executable, "-c", BUILD, str(ROOT), str(folder)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=dict(os.environ),
+    )
     assert p.returncode == 0, p.stderr[-3000:]
     return folder
 
 
 def run(*args):
-    return subprocess.run(CTLAB + [str(a) for a in args], capture_output=True, text=True,
-                          env=dict(os.environ), timeout=300)
+    return subprocess.run(
+        CTLAB + [str(a) for a in args],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ),
+        timeout=300,
+    )
 
 
 def digest(path):
@@ -168,8 +177,8 @@ def sphere_area_px(width, height):
     f = lens / sensor width x the longer image side (sensor fit Auto)."""
     d = math.dist(CAM, SPHERE_CENTRE)
     f_px = LENS / SENSOR * max(width, height)
-    radius_px = f_px * SPHERE_RADIUS / math.sqrt(d * d - SPHERE_RADIUS ** 2)
-    return math.pi * radius_px ** 2
+    radius_px = f_px * SPHERE_RADIUS / math.sqrt(d * d - SPHERE_RADIUS**2)
+    return math.pi * radius_px**2
 
 
 def test_scene_job_metal_sphere_model_against_principled(blends, tmp_path):
@@ -191,22 +200,37 @@ def test_scene_job_metal_sphere_model_against_principled(blends, tmp_path):
     p = run("scene", blend, "--out", out, "--size", SIZE, "--samples", SAMPLES)
     assert p.returncode == 0, p.stderr + p.stdout
     assert "[1/3]" in p.stdout and "[3/3]" in p.stdout
-    assert digest(blend) == before                       # opened, never written
-    for f in ("model/render.exr", "model/render.png", "principled/render.exr",
-              "principled/render.png", "model/layers.exr", "metrics.json", "diff.png",
-              "materials.png", "report.html"):
+    assert digest(blend) == before  # opened, never written
+    for f in (
+        "model/render.exr",
+        "model/render.png",
+        "principled/render.exr",
+        "principled/render.png",
+        "model/layers.exr",
+        "metrics.json",
+        "diff.png",
+        "materials.png",
+        "report.html",
+    ):
         assert (out / f).is_file(), f
     assert not list(out.rglob("*partial*"))
     m = json.loads((out / "metrics.json").read_text())
-    assert (m["width"], m["height"]) == (SIZE, SIZE * 3 // 4)       # the camera's 4:3 kept
+    assert (m["width"], m["height"]) == (SIZE, SIZE * 3 // 4)  # the camera's 4:3 kept
     assert m["camera"] == "Cam" and m["light_transport"] == "scene" and m["osl"]
-    [mat] = m["materials"]                      # the floor and cube are Principled already
+    [mat] = m["materials"]  # the floor and cube are Principled already
     assert mat["name"] == "CT Metal"
     assert mat["model"]["implementation"] == "osl"
     assert mat["model"]["g_model"] == "smith_ggx_correlated"
     assert mat["principled_distribution"] == "GGX"
-    for key in ("ciede2000_mean", "ciede2000_p95", "luminance_ratio", "luminance_model",
-                "luminance_principled", "mae", "rmse"):
+    for key in (
+        "ciede2000_mean",
+        "ciede2000_p95",
+        "luminance_ratio",
+        "luminance_model",
+        "luminance_principled",
+        "mae",
+        "rmse",
+    ):
         assert mat[key] is not None and np.isfinite(mat[key]), key
     for part in ("overall", "outside", "image"):
         assert np.isfinite(m[part]["ciede2000_mean"])
@@ -214,12 +238,13 @@ def test_scene_job_metal_sphere_model_against_principled(blends, tmp_path):
     # Material Index pass gave 1108 on both versions: edge pixels take their first sample's)
     expected = sphere_area_px(m["width"], m["height"])
     assert mat["pixels"] == pytest.approx(expected, rel=0.05), (mat["pixels"], expected)
-    assert m["masks_agree"] == 1.0               # the two renders' Material Index passes
+    assert m["masks_agree"] == 1.0  # the two renders' Material Index passes
     from addon.core.compare import read_image
+
     colours = read_image(out / "materials.png")
     red = np.all(np.abs(colours - np.array(mat["mask_colour"])) < 0.01, axis=2)
     assert red.sum() == mat["pixels"]
-    ys, xs = np.nonzero(red)                     # centred: the camera looks at the sphere
+    ys, xs = np.nonzero(red)  # centred: the camera looks at the sphere
     assert abs(xs.mean() + 0.5 - m["width"] / 2) < 1 and abs(ys.mean() + 0.5 - m["height"] / 2) < 1
     # parity within noise (see the docstring)
     assert abs(mat["luminance_ratio"] - 1) < 0.03, mat
@@ -229,8 +254,18 @@ def test_scene_job_metal_sphere_model_against_principled(blends, tmp_path):
     # the bound discriminates: Principled's Multiscatter GGX adds the energy that single
     # scattering loses (8.4% brighter here on 5.2)
     out2 = tmp_path / "multi"
-    p = run("scene", blend, "--out", out2, "--size", SIZE, "--samples", SAMPLES,
-            "--principled-distribution", "MULTI_GGX")
+    p = run(
+        "scene",
+        blend,
+        "--out",
+        out2,
+        "--size",
+        SIZE,
+        "--samples",
+        SAMPLES,
+        "--principled-distribution",
+        "MULTI_GGX",
+    )
     assert p.returncode == 0, p.stderr + p.stdout
     [multi] = json.loads((out2 / "metrics.json").read_text())["materials"]
     assert multi["principled_distribution"] == "MULTI_GGX"
@@ -245,16 +280,30 @@ def test_scene_job_convert_principled_to_model(blends, tmp_path):
     blend = blends / "scene.blend"
     before = digest(blend)
     out = tmp_path / "out"
-    p = run("scene", blend, "--out", out, "--size", SIZE, "--samples", SAMPLES, "--convert",
-            "--g", "smith_ggx_correlated", "--diffuse", "lambert", "--light-transport",
-            "scene")
+    p = run(
+        "scene",
+        blend,
+        "--out",
+        out,
+        "--size",
+        SIZE,
+        "--samples",
+        SAMPLES,
+        "--convert",
+        "--g",
+        "smith_ggx_correlated",
+        "--diffuse",
+        "lambert",
+        "--light-transport",
+        "scene",
+    )
     assert p.returncode == 0, p.stderr + p.stdout
     assert digest(blend) == before
     m = json.loads((out / "metrics.json").read_text())
     assert m["convert"] and sorted(x["name"] for x in m["materials"]) == ["Cube", "Floor"]
     for mat in m["materials"]:
         assert mat["pixels"] > 0 and mat["model"]["diffuse_model"] == "lambert"
-        assert mat["principled_distribution"] == "MULTI_GGX"        # the file's own
+        assert mat["principled_distribution"] == "MULTI_GGX"  # the file's own
         # dielectrics differ by the model's fixed 0.96 diffuse against Principled's layering
         # (about +1.5% here), far less than a wrong mapping would
         assert 0.9 < mat["luminance_ratio"] < 1.1, mat
@@ -265,15 +314,23 @@ BAD = (
     ("missing", lambda b, t: ["scene", t / "nowhere.blend"], "no such file"),
     ("not a blend", lambda b, t: ["scene", ROOT / "README.md"], "not a Blender file"),
     ("no camera", lambda b, t: ["scene", b / "no_camera.blend"], "no active camera"),
-    ("--camera names none", lambda b, t: ["scene", b / "scene.blend", "--camera", "Nope"],
-     "no camera named 'Nope'"),
-    ("no model material", lambda b, t: ["scene", b / "principled_only.blend"],
-     "no Cook-Torrance material"),
-    ("no Principled to convert", lambda b, t: ["scene", b / "model_only.blend", "--convert"],
-     "no Principled BSDF material"),
+    (
+        "--camera names none",
+        lambda b, t: ["scene", b / "scene.blend", "--camera", "Nope"],
+        "no camera named 'Nope'",
+    ),
+    (
+        "no model material",
+        lambda b, t: ["scene", b / "principled_only.blend"],
+        "no Cook-Torrance material",
+    ),
+    (
+        "no Principled to convert",
+        lambda b, t: ["scene", b / "model_only.blend", "--convert"],
+        "no Principled BSDF material",
+    ),
     ("linked library", lambda b, t: ["scene", b / "linked.blend"], "links data from"),
-    ("missing texture", lambda b, t: ["scene", b / "missing_texture.blend"],
-     "wood_missing.png"),
+    ("missing texture", lambda b, t: ["scene", b / "missing_texture.blend"], "wood_missing.png"),
     ("size", lambda b, t: ["scene", b / "scene.blend", "--size", "0"], "--size 0 out of range"),
 )
 
@@ -288,5 +345,5 @@ def test_scene_job_bad_input_one_line_exit_2_nothing_written(blends, tmp_path):
         assert len(lines) == 1 and lines[0].startswith("ctlab: error: "), (name, p.stderr)
         assert words in lines[0], (name, lines[0])
         assert "Traceback" not in p.stderr + p.stdout
-        assert not out.exists(), name                     # nothing written
+        assert not out.exists(), name  # nothing written
     assert {p.name: digest(p) for p in blends.iterdir()} == before

@@ -12,7 +12,6 @@ from addon.core.settings import MatrixSettings, describe, matrix_values, with_ov
 from addon.jobs import cli
 
 
-
 def test_settings_are_validated_when_made():
     with pytest.raises(UserError, match="grid 0x3 out of range"):
         MatrixSettings(rows=0, cols=3)
@@ -24,12 +23,21 @@ def test_settings_are_validated_when_made():
 
 def test_overrides_reach_the_scene_and_the_model_and_leave_the_original():
     base = MatrixSettings(rows=3, cols=2, width=64, height=64)
-    s = with_overrides(base, dict(g_model="smith_ggx_correlated", shader="principled",
-                                  metallic=1.0, view="D"))
-    assert (s.model.g_model, s.model.view, s.shader, s.metallic) == \
-        ("smith_ggx_correlated", "D", "principled", 1.0)
-    assert (base.model.g_model, base.model.view, base.shader, base.metallic) == \
-        ("cook_torrance", "full", "osl", None)
+    s = with_overrides(
+        base, dict(g_model="smith_ggx_correlated", shader="principled", metallic=1.0, view="D")
+    )
+    assert (s.model.g_model, s.model.view, s.shader, s.metallic) == (
+        "smith_ggx_correlated",
+        "D",
+        "principled",
+        1.0,
+    )
+    assert (base.model.g_model, base.model.view, base.shader, base.metallic) == (
+        "cook_torrance",
+        "full",
+        "osl",
+        None,
+    )
     assert (s.rows, s.cols, s.width) == (3, 2, 64)
 
 
@@ -40,17 +48,29 @@ def test_the_matrix_layout_metallic_by_column_smoothness_by_row():
     d = describe(MatrixSettings(rows=3, cols=4, width=400, height=300), "x.exr")
     left, right = d["cells"][0], d["cells"][3]
     top, bottom = d["cells"][0], d["cells"][8]
-    assert left["center_px"][0] < right["center_px"][0]        # metallic rises to the right
-    assert top["center_px"][1] < bottom["center_px"][1]        # smoothness falls downward
+    assert left["center_px"][0] < right["center_px"][0]  # metallic rises to the right
+    assert top["center_px"][1] < bottom["center_px"][1]  # smoothness falls downward
     assert d["sun"]["to_light"] == pytest.approx(
-        [x / math.dist((0, 0, 0), (-0.45, -0.55, 0.70)) for x in (-0.45, -0.55, 0.70)])
+        [x / math.dist((0, 0, 0), (-0.45, -0.55, 0.70)) for x in (-0.45, -0.55, 0.70)]
+    )
 
 
-@pytest.mark.parametrize("values", [
-    dict(sun_dir=(-0.45, -0.55, 0.7), hdri_rotation=-1e-05, sun_strength=2.5),
-    dict(grid="2x5", size=96, samples=3, hdri="/tmp/a b/-odd.exr", hdri_strength=0.0,
-         albedo=(1.0, 0.5, 0.0), g_model="smith_ggx_correlated", env_visibility=True),
-])
+@pytest.mark.parametrize(
+    "values",
+    [
+        dict(sun_dir=(-0.45, -0.55, 0.7), hdri_rotation=-1e-05, sun_strength=2.5),
+        dict(
+            grid="2x5",
+            size=96,
+            samples=3,
+            hdri="/tmp/a b/-odd.exr",
+            hdri_strength=0.0,
+            albedo=(1.0, 0.5, 0.0),
+            g_model="smith_ggx_correlated",
+            env_visibility=True,
+        ),
+    ],
+)
 def test_a_built_command_line_parses_back_to_its_values(values):
     """argv() writes --flag=value from the parser's own table: negative numbers and lists
     starting with "-" survive (they used to be read as options), and every value returns."""
@@ -61,4 +81,4 @@ def test_a_built_command_line_parses_back_to_its_values(values):
             got = cli.parse_vector(got, 3, dest)
         assert got == pytest.approx(want) if isinstance(want, (float, tuple)) else got == want
     with pytest.raises(KeyError):
-        cli.argv("matrix", sun_direction=(0, 0, 1))      # no such option: fails here
+        cli.argv("matrix", sun_direction=(0, 0, 1))  # no such option: fails here

@@ -38,8 +38,9 @@ def test_unity_mode_in_a_white_furnace_is_unitys_formula(tmp_path, uniform_hdri)
         t = ((1 - np.clip(nv, 0, 1)) ** 5)[:, None]
         want = (spec * (1 - t) + grazing * t) / (alpha * alpha + 1)
         np.testing.assert_allclose(img["indirect_specular"][m], want, rtol=1e-4, atol=1e-6)
-        np.testing.assert_allclose(img["indirect_diffuse"][m], np.broadcast_to(diff, want.shape),
-                                   rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose(
+            img["indirect_diffuse"][m], np.broadcast_to(diff, want.shape), rtol=1e-4, atol=1e-6
+        )
 
 
 def test_split_sum_in_a_white_furnace_is_the_directional_albedo(tmp_path, uniform_hdri):
@@ -49,27 +50,44 @@ def test_split_sum_in_a_white_furnace_is_the_directional_albedo(tmp_path, unifor
     lookup between table texels."""
     views = ("indirect_specular", "indirect_diffuse", "normal")
     for g_model in G_MODELS:
-        img, scene = render(tmp_path / g_model, view=views, ibl="split_sum", hdri=uniform_hdri,
-                            g_model=g_model, **WHITE)
+        img, scene = render(
+            tmp_path / g_model,
+            view=views,
+            ibl="split_sum",
+            hdri=uniform_hdri,
+            g_model=g_model,
+            **WHITE,
+        )
         checked = 0
         for cell, m, nv in _pixels(scene, img["normal"]):
             if cell["smoothness"] == 1.0:
-                continue                  # the mirror's lobe is below any quadrature grid
+                continue  # the mirror's lobe is below any quadrature grid
             for mu in (0.9, 0.6, 0.3):
                 ring = np.abs(nv - mu) < 0.02
                 if ring.sum() < 3:
                     continue
                 x = float(np.mean(nv[ring]))
-                spec = specular_albedo(x, np.array(cell["albedo"]), cell["metallic"],
-                                       cell["smoothness"], g_model=g_model)
+                spec = specular_albedo(
+                    x,
+                    np.array(cell["albedo"]),
+                    cell["metallic"],
+                    cell["smoothness"],
+                    g_model=g_model,
+                )
                 got = img["indirect_specular"][m][ring].mean(axis=0)
-                np.testing.assert_allclose(got, spec, rtol=0.01,
-                                           err_msg=f"{g_model} {cell['row']},{cell['col']} {mu}")
+                np.testing.assert_allclose(
+                    got, spec, rtol=0.01, err_msg=f"{g_model} {cell['row']},{cell['col']} {mu}"
+                )
                 _, diff = _colors(cell)
-                disney = specular_albedo(x, np.full(3, 1 / 0.96), 0.0, cell["smoothness"],
-                                         term="diffuse_brdf")
-                np.testing.assert_allclose(img["indirect_diffuse"][m][ring].mean(axis=0),
-                                           diff * disney, rtol=0.01, atol=1e-6)
+                disney = specular_albedo(
+                    x, np.full(3, 1 / 0.96), 0.0, cell["smoothness"], term="diffuse_brdf"
+                )
+                np.testing.assert_allclose(
+                    img["indirect_diffuse"][m][ring].mean(axis=0),
+                    diff * disney,
+                    rtol=0.01,
+                    atol=1e-6,
+                )
                 checked += 1
         assert checked >= 12
 
@@ -89,13 +107,18 @@ def test_split_sum_equals_the_reference_on_mirrors_within_noise(tmp_path):
     (A bound from two reference seeds' own difference, the test's earlier form, failed on
     5.0 and 5.1 where those two seeds happened to agree within 0.1%.) The median per-pixel
     CIEDE2000, which ignores the few glint pixels, is held to the reference's own."""
-    kw = dict(view="indirect", grid=(2, 3), size=96, samples=64, diffuse_model="lambert",
-              albedo=(1.0, 0.766, 0.336))
+    kw = dict(
+        view="indirect",
+        grid=(2, 3),
+        size=96,
+        samples=64,
+        diffuse_model="lambert",
+        albedo=(1.0, 0.766, 0.336),
+    )
     imgs = {}
     for seed in (1, 2):
         imgs["ref", seed], scene = render(tmp_path / f"ref{seed}", seed=seed, **kw)
-        imgs["split", seed], _ = render(tmp_path / f"split{seed}", ibl="split_sum", seed=seed,
-                                        **kw)
+        imgs["split", seed], _ = render(tmp_path / f"split{seed}", ibl="split_sum", seed=seed, **kw)
     disp = {k: read_image(tmp_path / k / "render.png") for k in ("ref1", "ref2", "split1")}
     checked = 0
     for cell in scene["cells"]:
@@ -106,8 +129,10 @@ def test_split_sum_equals_the_reference_on_mirrors_within_noise(tmp_path):
         y_ref = (y["ref", 1] + y["ref", 2]) / 2
         y_split = (y["split", 1] + y["split", 2]) / 2
         assert abs(y_split - y_ref) / y_ref < 0.04, (cell["col"], y)
+
         def de(k, m=m):
             return np.median(ciede2000(srgb_to_lab(disp["ref1"][m]), srgb_to_lab(disp[k][m])))
+
         assert de("split1") < 1.5 * de("ref2") + 0.2, (cell["col"], de("split1"), de("ref2"))
         checked += 1
     assert checked == 3
@@ -121,8 +146,9 @@ def test_the_world_strength_scales_every_indirect_mode_exactly(tmp_path):
     pixel-centre render is not quite repeatable: the same render twice differs at one or two
     pixels in 3072 by up to 0.3% (seen in every mode, one run in two), so those are allowed
     within 1%. A strength applied twice, or not at all, to any lookup is off by 150% or 60%."""
-    kw = dict(view="indirect", grid=(2, 2), size=48, samples=1, pixel_centres=True,
-              sun_strength=0.0)
+    kw = dict(
+        view="indirect", grid=(2, 2), size=48, samples=1, pixel_centres=True, sun_strength=0.0
+    )
     for ibl in ("split_sum", "unity", "reference"):
         one, scene = render(tmp_path / f"{ibl}-1", ibl=ibl, hdri_strength=1.0, **kw)
         more, _ = render(tmp_path / f"{ibl}-2.5", ibl=ibl, hdri_strength=2.5, **kw)
@@ -148,8 +174,10 @@ def test_the_dominant_direction_brings_rough_metals_toward_the_reference(tmp_pat
     lum = np.array(REC709_LUMINANCE)
     for cell in scene["cells"]:
         m = sphere_pixels(scene, cell)
-        ref, plain, corrected = ((imgs[k][m][:, :3] @ lum).mean() for k in
-                                 ("reference", "split_sum", "split_sum_corrected"))
+        ref, plain, corrected = (
+            (imgs[k][m][:, :3] @ lum).mean()
+            for k in ("reference", "split_sum", "split_sum_corrected")
+        )
         assert abs(corrected / ref - 1) < 0.06, (cell["row"], cell["col"], corrected / ref)
         if cell["metallic"] == 1.0 and cell["smoothness"] == 0.0:
             assert plain / ref < 0.88, plain / ref

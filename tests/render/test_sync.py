@@ -15,7 +15,6 @@ from addon.core.compare import read_image
 from addon.core.hdri import image_width, write_float_exr
 
 
-
 def _material(impl):
     cube = bpy.data.objects["Cube"]
     bpy.context.view_layer.objects.active = cube
@@ -34,15 +33,17 @@ def _world_image(scene, path):
 
 def test_the_handler_follows_the_world_from_its_colour_to_a_new_image(addon, tmp_path):
     scene = bpy.context.scene
-    background = next(n for n in scene.world.node_tree.nodes
-                      if n.bl_idname == "ShaderNodeBackground")
+    background = next(
+        n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground"
+    )
     background.inputs["Color"].default_value = (0.2, 0.3, 0.4, 1.0)
     osl, nodes = _material("osl"), _material("nodes")
     light_sync.on_depsgraph_update(scene)
     osl_node = model_node.find(osl)
     uniform = osl_node.inputs["HDRI"].default_value
-    np.testing.assert_allclose(read_image(uniform), np.broadcast_to((0.2, 0.3, 0.4), (8, 16, 3)),
-                               rtol=1e-6)
+    np.testing.assert_allclose(
+        read_image(uniform), np.broadcast_to((0.2, 0.3, 0.4), (8, 16, 3)), rtol=1e-6
+    )
     # a new world image: the OSL material gets the file, its width and its tables; the node
     # group its bake
     sky = tmp_path / "sky.exr"
@@ -52,18 +53,25 @@ def test_the_handler_follows_the_world_from_its_colour_to_a_new_image(addon, tmp
     light_sync.on_depsgraph_update(scene)
     assert osl_node.inputs["HDRI"].default_value == str(sky)
     assert osl_node.inputs["HDRI Width"].default_value == image_width(sky) == 64
-    tables = [osl_node.inputs[label].default_value for label in
-              ("Env Marginal Table", "Env Conditional Table", "Env PDF Table")]
+    tables = [
+        osl_node.inputs[label].default_value
+        for label in ("Env Marginal Table", "Env Conditional Table", "Env PDF Table")
+    ]
     assert all(t.endswith(".exr") for t in tables)
     from pathlib import Path
+
     assert cache.intact(Path(tables[0]).parent)
     group = model_node.find(nodes).node_tree
-    images = {n.image.filepath for n in group.nodes
-              if n.get(node_group.BAKE_FILE) and getattr(n, "image", None)}
+    images = {
+        n.image.filepath
+        for n in group.nodes
+        if n.get(node_group.BAKE_FILE) and getattr(n, "image", None)
+    }
     bake = {str(Path(p).parent) for p in images}
     assert len(bake) == 1 and cache.intact(Path(bake.pop()))
-    np.testing.assert_allclose(read_image(Path(next(iter(images))).parent / "specular_0.exr"),
-                               read_image(sky), rtol=1e-6)
+    np.testing.assert_allclose(
+        read_image(Path(next(iter(images))).parent / "specular_0.exr"), read_image(sky), rtol=1e-6
+    )
     # a state already synced is not synced again (the handler runs on every depsgraph update)
     osl_node.inputs["HDRI"].default_value = "untouched"
     light_sync.on_depsgraph_update(scene)
@@ -84,11 +92,14 @@ def test_the_key_sun_is_the_chosen_one_else_the_first_by_name_else_none(addon):
 
     def follows(sun):
         light_sync.sync_material(mat, scene, environment=False)
-        scene.frame_set(scene.frame_current)              # evaluates the drivers
+        scene.frame_set(scene.frame_current)  # evaluates the drivers
         want = sun.matrix_world.to_quaternion() @ Vector((0, 0, 1))
         got = node.inputs["Sun Direction"].default_value
-        return (max(abs(a - b) for a, b in zip(got, want)) < 1e-5 and
-                abs(node.inputs["Sun Irradiance"].default_value[0] - sun.data.energy) < 1e-6)
+        return (
+            max(abs(a - b) for a, b in zip(got, want)) < 1e-5
+            and abs(node.inputs["Sun Irradiance"].default_value[0] - sun.data.energy) < 1e-6
+        )
+
     assert light_sync.key_sun(scene) == suns["A Sun"] and follows(suns["A Sun"])
     scene.ctlab_sun = suns["B Sun"]
     assert light_sync.key_sun(scene) == suns["B Sun"] and follows(suns["B Sun"])

@@ -30,8 +30,13 @@ OPENJD = shutil.which("openjd", path=os.path.dirname(sys.executable)) or shutil.
 
 
 def run(*args, timeout=600):
-    return subprocess.run(CTLAB + [str(a) for a in args], capture_output=True, text=True,
-                          env=dict(os.environ), timeout=timeout)
+    return subprocess.run(
+        CTLAB + [str(a) for a in args],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ),
+        timeout=timeout,
+    )
 
 
 def plan(out, *extra):
@@ -46,9 +51,12 @@ def error_line(capsys) -> str:
 
 
 def metrics(out):
-    return {p.parent.name: {k: v for k, v in json.loads(p.read_text()).items()
-                            if k in ("cells", "overall")}
-            for p in sorted(out.glob("compare*/metrics.json"))}
+    return {
+        p.parent.name: {
+            k: v for k, v in json.loads(p.read_text()).items() if k in ("cells", "overall")
+        }
+        for p in sorted(out.glob("compare*/metrics.json"))
+    }
 
 
 def renders(out):
@@ -58,40 +66,65 @@ def renders(out):
 # ----------------------------------------------------------------------------------------
 # The plan (no renders)
 
+
 def test_a_plan_names_each_task_by_its_content(tmp_path):
     a = plan(tmp_path / "a")
     b = plan(tmp_path / "b")
     c = plan(tmp_path / "c", "--seed", "1")
     ids = [t["id"] for t in a["tasks"]]
-    assert ids == [t["id"] for t in b["tasks"]]              # same settings: same ids
-    assert not set(ids) & {t["id"] for t in c["tasks"]}       # another seed: none shared
+    assert ids == [t["id"] for t in b["tasks"]]  # same settings: same ids
+    assert not set(ids) & {t["id"] for t in c["tasks"]}  # another seed: none shared
     assert a["version"] == jobgraph.PLAN_VERSION and a["job"] == "matrix"
     from addon.jobs.pipeline import FURNACE_RENDERS, MATRIX_RENDERS
+
     rend = jobgraph.render_tasks(a)
     assert [t["folder"] for t in rend] == [r[0] for r in MATRIX_RENDERS + FURNACE_RENDERS]
     merge = a["tasks"][-1]
     assert merge["kind"] == "merge" and merge["depends"] == [t["id"] for t in rend]
     for t in rend:
         assert t["command"] == ["ctlab", "task", "{job}", t["id"]]
-        assert t["outputs"] == [f"{t['folder']}/{n}" for n in
-                                ("render.exr", "render.png", "scene.json")]
-        assert len(t["inputs"]["hdri"]) == 24                   # the HDRI's content hash
+        assert t["outputs"] == [
+            f"{t['folder']}/{n}" for n in ("render.exr", "render.png", "scene.json")
+        ]
+        assert len(t["inputs"]["hdri"]) == 24  # the HDRI's content hash
     # the same plan again into its folder is kept; another is refused, nothing overwritten
     before = (tmp_path / "a" / "plan.json").read_bytes()
     plan(tmp_path / "a")
-    assert cli.main(["plan", "matrix", *JOB, "--seed", "2", "--out", str(tmp_path / "a")]) \
+    assert (
+        cli.main(["plan", "matrix", *JOB, "--seed", "2", "--out", str(tmp_path / "a")])
         == cli.EXIT_BAD_INPUT
+    )
     assert (tmp_path / "a" / "plan.json").read_bytes() == before
 
 
 def test_the_parity_job_plans_two_tasks_per_hdri(tmp_path):
     job = tmp_path / "p"
-    assert cli.main(["plan", "parity", "--grid", "3x1", "--size", "72", "--samples", "8",
-                     "--parity-hdris", "forest,studio", "--out", str(job)]) == 0
+    assert (
+        cli.main(
+            [
+                "plan",
+                "parity",
+                "--grid",
+                "3x1",
+                "--size",
+                "72",
+                "--samples",
+                "8",
+                "--parity-hdris",
+                "forest,studio",
+                "--out",
+                str(job),
+            ]
+        )
+        == 0
+    )
     p = jobgraph.read_plan(job)
     assert p["job"] == "parity" and [t["folder"] for t in jobgraph.render_tasks(p)] == [
-        "forest/cook_torrance", "forest/principled", "studio/cook_torrance",
-        "studio/principled"]
+        "forest/cook_torrance",
+        "forest/principled",
+        "studio/cook_torrance",
+        "studio/principled",
+    ]
     hashes = {t["folder"].split("/")[0]: t["inputs"]["hdri"] for t in jobgraph.render_tasks(p)}
     assert hashes["forest"] != hashes["studio"]
     assert p["tasks"][-1]["kind"] == "merge" and len(p["tasks"][-1]["depends"]) == 4
@@ -106,18 +139,24 @@ def test_the_openjd_bundle_passes_openjd_check(tmp_path):
     render, report = template["steps"]
     assert render["name"] == "Render" and report["dependencies"] == [{"dependsOn": "Render"}]
     task_param = render["parameterSpace"]["taskParameterDefinitions"][0]
-    assert task_param["type"] == "STRING" and \
-        task_param["range"] == [t["id"] for t in jobgraph.render_tasks(p)]
+    assert task_param["type"] == "STRING" and task_param["range"] == [
+        t["id"] for t in jobgraph.render_tasks(p)
+    ]
     kinds = {d["name"]: d["type"] for d in template["parameterDefinitions"]}
     assert kinds["BundleDir"] == kinds["RepoRoot"] == "PATH"
     assert (tmp_path / "j" / "openjd" / "ctlab" / "scripts" / "ctlab.py").is_file()
-    check = subprocess.run([OPENJD, "check", str(tmp_path / "j" / "openjd" / "template.json")],
-                           capture_output=True, text=True, timeout=120)
+    check = subprocess.run(
+        [OPENJD, "check", str(tmp_path / "j" / "openjd" / "template.json")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert check.returncode == 0, check.stdout + check.stderr
 
 
 # ----------------------------------------------------------------------------------------
 # Bad job folders: one line each, the tasks to re-run named, nothing overwritten
+
 
 def _fake_done(job, p, skip=()):
     """Mark the render tasks done over placeholder outputs (the checks read only files)."""
@@ -144,11 +183,15 @@ def test_a_merge_names_the_tasks_not_done(tmp_path, capsys):
     assert not (job / "report.html").exists()
 
 
-@pytest.mark.parametrize("damage, words", [
-    ("corrupt", "has a corrupt output principled/render.exr"),
-    ("missing", "lost its output principled/scene.json"),
-    ("foreign", "holds the output of another version or other settings"),
-    ("marker", "has a corrupt completion marker")])
+@pytest.mark.parametrize(
+    "damage, words",
+    [
+        ("corrupt", "has a corrupt output principled/render.exr"),
+        ("missing", "lost its output principled/scene.json"),
+        ("foreign", "holds the output of another version or other settings"),
+        ("marker", "has a corrupt completion marker"),
+    ],
+)
 def test_a_damaged_task_is_named_and_nothing_is_overwritten(tmp_path, capsys, damage, words):
     job = tmp_path / "j"
     p = plan(job)
@@ -161,15 +204,15 @@ def test_a_damaged_task_is_named_and_nothing_is_overwritten(tmp_path, capsys, da
     elif damage == "missing":
         (job / "principled" / "scene.json").unlink()
     elif damage == "foreign":
-        marker.write_text(json.dumps(dict(json.loads(marker.read_text()),
-                                          id="principled-000000000000")))
+        marker.write_text(
+            json.dumps(dict(json.loads(marker.read_text()), id="principled-000000000000"))
+        )
     else:
         marker.write_text("{not json")
     capsys.readouterr()
     assert cli.main(["merge", str(job)]) == cli.EXIT_BAD_INPUT
     line = error_line(capsys)
-    assert f"task {t['id']} (principled) {words}" in line and \
-        f"ctlab task {job} {t['id']}" in line
+    assert f"task {t['id']} (principled) {words}" in line and f"ctlab task {job} {t['id']}" in line
     assert (job / "report.html").read_text() == "an earlier report"
     assert not (job / jobgraph.TASKS_DIR / jobgraph.LOCK_FILE).exists()
 
@@ -179,14 +222,14 @@ def test_two_merges_at_once_are_refused(tmp_path, capsys):
     p = plan(job)
     _fake_done(job, p)
     import socket
+
     lock = job / jobgraph.TASKS_DIR / jobgraph.LOCK_FILE
     holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     try:
-        lock.write_text(f"{socket.gethostname()} {holder.pid}")          # a live merge
+        lock.write_text(f"{socket.gethostname()} {holder.pid}")  # a live merge
         capsys.readouterr()
         assert cli.main(["merge", str(job)]) == cli.EXIT_BAD_INPUT
-        assert f"another merge of {job} is running (process {holder.pid}" in \
-            error_line(capsys)
+        assert f"another merge of {job} is running (process {holder.pid}" in error_line(capsys)
         assert not (job / "report.html").exists() and lock.exists()
     finally:
         holder.kill()
@@ -203,12 +246,13 @@ def test_a_task_of_other_settings_or_a_bad_plan_is_refused(tmp_path, capsys):
     p = plan(job)
     t = jobgraph.render_tasks(p)[0]
     edited = json.loads((job / "plan.json").read_text())
-    edited["spec"]["samples"] = 5                    # the settings changed after planning
+    edited["spec"]["samples"] = 5  # the settings changed after planning
     (job / "plan.json").write_text(json.dumps(edited))
     capsys.readouterr()
     assert cli.main(["task", str(job), t["id"]]) == cli.EXIT_BAD_INPUT
-    assert f"task {t['id']} was planned by another version or with other settings" in \
-        error_line(capsys)
+    assert f"task {t['id']} was planned by another version or with other settings" in error_line(
+        capsys
+    )
     assert not (job / t["folder"]).exists()
     assert cli.main(["task", str(job), "nonesuch-1"]) == cli.EXIT_BAD_INPUT
     assert "no task 'nonesuch-1' in this plan" in error_line(capsys)
@@ -224,6 +268,7 @@ def test_a_task_of_other_settings_or_a_bad_plan_is_refused(tmp_path, capsys):
 
 # ----------------------------------------------------------------------------------------
 # End to end: the same job as one process, as tasks, with workers, through openjd
+
 
 @pytest.fixture(scope="module")
 def single_process(tmp_path_factory):
@@ -267,10 +312,14 @@ def _same_job(a, b):
         if np.array_equal(x, y):
             continue
         d = np.abs(x - y)
-        assert d.max() < DIFFERENCE * max(1.0, float(np.abs(x).max())), \
-            (folder, (d > 0).mean(), d.max())
+        assert d.max() < DIFFERENCE * max(1.0, float(np.abs(x).max())), (
+            folder,
+            (d > 0).mean(),
+            d.max(),
+        )
         differed.add(folder)
     from addon.jobs.pipeline import MATRIX_COMPARISONS
+
     ma, mb = metrics(a), metrics(b)
     assert set(ma) == set(mb) and len(ma) == 9
     for cmp_dir, x, y in MATRIX_COMPARISONS:
@@ -286,15 +335,20 @@ def _same_job(a, b):
             assert ma[cmp_dir] == mb[cmp_dir], cmp_dir
     for rel in ("report.html", "plots"):
         assert (b / rel).exists(), rel
-    layout = {str(p.relative_to(a)) for p in a.rglob("*") if ".tasks" not in p.parts
-              and "openjd" not in p.parts}
-    assert layout == {str(p.relative_to(b)) for p in b.rglob("*") if ".tasks" not in p.parts
-                      and "openjd" not in p.parts}
+    layout = {
+        str(p.relative_to(a))
+        for p in a.rglob("*")
+        if ".tasks" not in p.parts and "openjd" not in p.parts
+    }
+    assert layout == {
+        str(p.relative_to(b))
+        for p in b.rglob("*")
+        if ".tasks" not in p.parts and "openjd" not in p.parts
+    }
     return differed
 
 
-def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path,
-                                                                     single_process):
+def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path, single_process):
     job = tmp_path / "j"
     assert run("plan", "matrix", *JOB, "--out", job).returncode == 0
     p = jobgraph.read_plan(job)
@@ -302,11 +356,17 @@ def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path,
     random.Random(27).shuffle(tasks)
     # one task killed while it renders: its folder appears as the render starts
     victim = tasks[0]
-    proc = subprocess.Popen(CTLAB + ["task", str(job), victim["id"]],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        CTLAB + ["task", str(job), victim["id"]],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 120
-    while not (job / victim["folder"]).exists() and proc.poll() is None \
-            and time.monotonic() < deadline:
+    while (
+        not (job / victim["folder"]).exists()
+        and proc.poll() is None
+        and time.monotonic() < deadline
+    ):
         time.sleep(0.01)
     time.sleep(0.2)
     os.kill(proc.pid, signal.SIGKILL)
@@ -316,11 +376,11 @@ def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path,
     m = run("merge", job)
     assert m.returncode == 2 and victim["id"] in m.stderr and not (job / "report.html").exists()
     # the rest of the first half task by task, in shuffled order, the victim retried
-    for t in tasks[:len(tasks) // 2]:
+    for t in tasks[: len(tasks) // 2]:
         r = run("task", job, t["id"])
         assert r.returncode == 0, r.stderr
     assert jobgraph.done(job, victim)
-    again = run("task", job, victim["id"])                  # done: does nothing
+    again = run("task", job, victim["id"])  # done: does nothing
     assert again.returncode == 0 and "done already" in again.stdout
     # the other half by two local workers, then the merge: the same job as one process
     w = run("matrix", *JOB, "--workers", "2", "--out", job)
@@ -336,8 +396,14 @@ def test_the_openjd_bundle_runs_end_to_end(tmp_path, single_process):
     assert run("plan", "matrix", *JOB, "--openjd", "--out", job).returncode == 0
     template = str(job / "openjd" / "template.json")
     for step in ("Render", "Report"):
-        r = subprocess.run([OPENJD, "run", template, "--step", step], capture_output=True,
-                           text=True, timeout=600, cwd=tmp_path, env=dict(os.environ))
+        r = subprocess.run(
+            [OPENJD, "run", template, "--step", step],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            cwd=tmp_path,
+            env=dict(os.environ),
+        )
         assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     _same_job(single_process, job)
 
@@ -350,7 +416,9 @@ def test_the_flamenco_job_type_compiles_the_plan(tmp_path):
         pytest.skip("Node.js is not installed")
     p = plan(tmp_path / "j", "--flamenco")
     script = (tmp_path / "j" / "flamenco" / "ctlab-matrix.js").read_text()
-    harness = script + """
+    harness = (
+        script
+        + """
 const tasks = [];
 const author = globalThis.author;
 const job = { settings: {}, addTask: (t) => tasks.push(t) };
@@ -359,22 +427,26 @@ compileJob(job);
 console.log(JSON.stringify(tasks.map((t) => ({ name: t.name, commands: t.commands,
                                                deps: t.deps.map((d) => d.name) }))));
 """
+    )
     stub = """globalThis.author = {
   Task: (name, type) => ({ name, type, commands: [], deps: [],
                            addCommand(c) { this.commands.push(c); },
                            addDependency(t) { this.deps.push(t); } }),
   Command: (name, params) => ({ name, params }) };
 """
-    out = subprocess.run([node, "-e", stub + harness], capture_output=True, text=True,
-                         timeout=60)
+    out = subprocess.run([node, "-e", stub + harness], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     tasks = json.loads(out.stdout)
     renders = jobgraph.render_tasks(p)
     assert [t["name"] for t in tasks] == [f"render-{t['id']}" for t in renders] + ["merge"]
     first = tasks[0]["commands"][0]
     assert first["name"] == "exec" and first["params"]["exe"] == sys.executable
-    assert first["params"]["args"] == [str(ROOT / "scripts" / "ctlab.py"), "task",
-                                       str((tmp_path / "j").resolve()), renders[0]["id"]]
+    assert first["params"]["args"] == [
+        str(ROOT / "scripts" / "ctlab.py"),
+        "task",
+        str((tmp_path / "j").resolve()),
+        renders[0]["id"],
+    ]
     assert tasks[-1]["deps"] == [f"render-{t['id']}" for t in renders]
     assert tasks[-1]["commands"][0]["params"]["args"][1] == "merge"
 
@@ -382,6 +454,7 @@ console.log(JSON.stringify(tasks.map((t) => ({ name: t.name, commands: t.command
 def test_a_task_whose_hdri_is_gone_says_so(tmp_path, capsys):
     hdri = tmp_path / "sky.exr"
     from addon.core.hdri import write_float_exr
+
     write_float_exr(hdri, np.ones((32, 64, 3), dtype=np.float32))
     job = tmp_path / "j"
     p = plan(job, "--hdri", str(hdri))

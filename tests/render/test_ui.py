@@ -28,7 +28,7 @@ _ICONS = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enu
 
 def _operator_rna(idname):
     module, name = idname.split(".")
-    return getattr(getattr(bpy.ops, module), name).get_rna_type()   # raises when unknown
+    return getattr(getattr(bpy.ops, module), name).get_rna_type()  # raises when unknown
 
 
 class _OperatorProps:
@@ -39,7 +39,9 @@ class _OperatorProps:
         prop = self._rna.properties.get(name)
         assert prop is not None, f"operator has no property {name!r}"
         if prop.type == 'ENUM':
-            assert value in prop.enum_items.keys(), f"{name}={value!r} not in {prop.enum_items.keys()}"
+            assert value in prop.enum_items.keys(), (
+                f"{name}={value!r} not in {prop.enum_items.keys()}"
+            )
 
 
 class StubLayout:
@@ -64,7 +66,7 @@ class StubLayout:
 
     def prop(self, data, name, **kw):
         assert name in data.bl_rna.properties, f"{type(data).__name__} has no {name!r}"
-        getattr(data, name)                 # runs get functions
+        getattr(data, name)  # runs get functions
         self._icon(kw)
         self.calls.append(("prop", name))
 
@@ -88,9 +90,13 @@ class StubLayout:
 
 
 def draw(panel_or_menu, **context):
-    ctx = types.SimpleNamespace(scene=bpy.context.scene, window_manager=bpy.context.window_manager,
-                                object=None, material=None,
-                                space_data=types.SimpleNamespace(tree_type="ShaderNodeTree"))
+    ctx = types.SimpleNamespace(
+        scene=bpy.context.scene,
+        window_manager=bpy.context.window_manager,
+        object=None,
+        material=None,
+        space_data=types.SimpleNamespace(tree_type="ShaderNodeTree"),
+    )
     for key, value in context.items():
         setattr(ctx, key, value)
     layout = StubLayout()
@@ -103,17 +109,23 @@ def draw(panel_or_menu, **context):
 
 # ----------------------------------------------------------------------------------------
 
+
 def _registered_state():
     """What registration can leave behind: classes, properties, menu entries, handlers,
     timers, drivers."""
-    drivers = sum(len(b.node_tree.animation_data.drivers)
-                  for b in list(bpy.data.materials) + list(bpy.data.worlds)
-                  if b.node_tree is not None and b.node_tree.animation_data is not None)
+    drivers = sum(
+        len(b.node_tree.animation_data.drivers)
+        for b in list(bpy.data.materials) + list(bpy.data.worlds)
+        if b.node_tree is not None and b.node_tree.animation_data is not None
+    )
     return {
         "classes": sorted(n for n in dir(bpy.types) if n.startswith("CTLAB_")),
-        "props": sorted(f"{o.__name__}.{n}" for o in (bpy.types.Material, bpy.types.Scene,
-                                                      bpy.types.WindowManager)
-                        for n in dir(o) if n.startswith("ctlab_")),
+        "props": sorted(
+            f"{o.__name__}.{n}"
+            for o in (bpy.types.Material, bpy.types.Scene, bpy.types.WindowManager)
+            for n in dir(o)
+            if n.startswith("ctlab_")
+        ),
         "menu": len(bpy.types.NODE_MT_add._dyn_ui_initialize()),
         "handlers": [h.__name__ for h in bpy.app.handlers.depsgraph_update_post],
         "timer": bpy.app.timers.is_registered(operators._job_tick),
@@ -131,7 +143,7 @@ def _sun(scene, energy=3.0, rotation=(0.6, 0.2, 0.8)):
 
 
 def _evaluate(scene):
-    scene.frame_set(scene.frame_current)       # evaluates drivers
+    scene.frame_set(scene.frame_current)  # evaluates drivers
 
 
 def test_register_unregister_reregister_leaves_nothing():
@@ -162,17 +174,22 @@ def test_new_material_follows_the_sun_and_world(addon):
         assert node.bl_idname == kind and model_node.implementation(node) == impl
         out = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
         assert out.inputs["Surface"].links[0].from_node == node
-        if impl == "osl":      # the OSL shader reads its normal from the geometry
-            assert model_node.surface_input(node, "normal").links[0].from_node.bl_idname == \
-                "ShaderNodeNewGeometry"
+        if impl == "osl":  # the OSL shader reads its normal from the geometry
+            assert (
+                model_node.surface_input(node, "normal").links[0].from_node.bl_idname
+                == "ShaderNodeNewGeometry"
+            )
             assert model_node.get_option(node, "ibl") == "reference"
             assert node.inputs["HDRI"].default_value.endswith(".exr")
         else:
             assert model_node.get_option(node, "ibl") == "split_sum"
         paths = {fc.data_path for fc in mat.node_tree.animation_data.drivers}
-        slot_paths = {p for p in paths if node.path_from_id() not in p or
-                      node.inputs[int(p.split("inputs[")[1].split("]")[0])].name
-                      .startswith("Light 1 ")}
+        slot_paths = {
+            p
+            for p in paths
+            if node.path_from_id() not in p
+            or node.inputs[int(p.split("inputs[")[1].split("]")[0])].name.startswith("Light 1 ")
+        }
         # Sun Direction, Sun Irradiance, HDRI Strength; the startup file's Point light holds
         # slot 1 (position, direction, colour, radius; and its shadow switch in OSL)
         assert len(paths - slot_paths) == 3
@@ -205,25 +222,33 @@ def test_add_menu_node_group_and_textures(addon):
     assert node.node_tree.name == "Cook-Torrance Lab" and mat.node_tree.nodes.active == node
     assert bpy.ops.ctlab.add_texture(slot="normal") == {'FINISHED'}
     src = model_node.surface_input(node, "normal").links[0].from_node
-    assert src.bl_idname == "ShaderNodeNormalMap" and \
-        src.inputs["Color"].links[0].from_node.bl_idname == "ShaderNodeTexImage"
+    assert (
+        src.bl_idname == "ShaderNodeNormalMap"
+        and src.inputs["Color"].links[0].from_node.bl_idname == "ShaderNodeTexImage"
+    )
     assert bpy.ops.ctlab.add_texture(slot="albedo") == {'FINISHED'}
-    assert model_node.surface_input(node, "albedo").links[0].from_node.bl_idname == \
-        "ShaderNodeTexImage"
+    assert (
+        model_node.surface_input(node, "albedo").links[0].from_node.bl_idname
+        == "ShaderNodeTexImage"
+    )
     group_nodes = len(node.node_tree.nodes)
-    groups = len(bpy.data.node_groups)         # the group and its sub-groups
-    assert bpy.ops.ctlab.add_node_group() == {'FINISHED'}     # the group is reused, not rebuilt
+    groups = len(bpy.data.node_groups)  # the group and its sub-groups
+    assert bpy.ops.ctlab.add_node_group() == {'FINISHED'}  # the group is reused, not rebuilt
     assert len(bpy.data.node_groups) == groups and len(node.node_tree.nodes) == group_nodes
     assert model_node.surface_input(node, "albedo").is_linked
 
 
 def _principled_state(mat):
     bsdf = convert.surface_principled(mat)
-    values = {s.name: (tuple(s.default_value) if hasattr(s.default_value, "__len__")
-                       else s.default_value)
-              for s in bsdf.inputs if hasattr(s, "default_value") and s.enabled}
-    links = sorted((l.from_node.name, l.from_socket.name, l.to_node.bl_idname, l.to_socket.name)
-                   for l in mat.node_tree.links)
+    values = {
+        s.name: (tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
+        for s in bsdf.inputs
+        if hasattr(s, "default_value") and s.enabled
+    }
+    links = sorted(
+        (l.from_node.name, l.from_socket.name, l.to_node.bl_idname, l.to_socket.name)
+        for l in mat.node_tree.links
+    )
     return values, links
 
 
@@ -255,12 +280,13 @@ def test_conversion_round_trip_and_undo(addon):
     cube.select_set(True)
     mat = _user_principled(cube)
     original = _principled_state(mat)
-    assert convert.principled_to_model(mat.copy(), scene, "nodes") == ["coat"]   # reported
+    assert convert.principled_to_model(mat.copy(), scene, "nodes") == ["coat"]  # reported
 
     bpy.ops.ed.undo_push(message="before conversion")
     # as a button press does: with an undo push (a script's bpy.ops call makes none)
-    assert bpy.ops.ctlab.convert_to_cook_torrance('EXEC_DEFAULT', True,
-                                                  scope='SELECTED') == {'FINISHED'}
+    assert bpy.ops.ctlab.convert_to_cook_torrance('EXEC_DEFAULT', True, scope='SELECTED') == {
+        'FINISHED'
+    }
     mat = bpy.data.materials["User Paint"]
     node = model_node.find(mat)
     assert convert.surface_principled(mat) is None and node is not None
@@ -269,11 +295,13 @@ def test_conversion_round_trip_and_undo(addon):
     invert = model_node.surface_input(node, "smoothness").links[0].from_node
     assert invert.bl_idname == "ShaderNodeMath" and invert.operation == 'SUBTRACT'
     assert invert.inputs[1].links[0].from_node.name == "Paint Roughness"
-    assert model_node.surface_input(node, "normal").links[0].from_node.bl_idname == \
-        "ShaderNodeNormalMap"
+    assert (
+        model_node.surface_input(node, "normal").links[0].from_node.bl_idname
+        == "ShaderNodeNormalMap"
+    )
     assert mat.cycles.emission_sampling == 'NONE'
 
-    bpy.ops.ed.undo()                       # the conversion was one undo step
+    bpy.ops.ed.undo()  # the conversion was one undo step
     mat = bpy.data.materials["User Paint"]
     assert model_node.find(mat) is None and _principled_state(mat)[1] == original[1]
     bpy.ops.ed.redo()
@@ -283,11 +311,17 @@ def test_conversion_round_trip_and_undo(addon):
     assert bpy.ops.ctlab.convert_to_principled(scope='ACTIVE') == {'FINISHED'}
     mat = bpy.data.materials["User Paint"]
     values, links = _principled_state(mat)
-    assert links == original[1]             # the same textures on the same inputs, no helper
+    assert links == original[1]  # the same textures on the same inputs, no helper
     for name in ("Base Color", "Metallic", "Roughness", "Normal"):
         a, b = values[name], original[0][name]
-        assert (a == b) if isinstance(a, str) else \
-            max(abs(x - y) for x, y in zip(*(v if isinstance(v, tuple) else (v,) for v in (a, b)))) < 1e-6
+        assert (
+            (a == b)
+            if isinstance(a, str)
+            else max(
+                abs(x - y) for x, y in zip(*(v if isinstance(v, tuple) else (v,) for v in (a, b)))
+            )
+            < 1e-6
+        )
     assert not any(model_node.implementation(n) for n in mat.node_tree.nodes)
     assert mat.cycles.emission_sampling == 'AUTO'
 
@@ -331,8 +365,10 @@ def test_switch_implementation_and_view_on_all(addon):
     assert abs(model_node.surface_input(node, "metallic").default_value - 0.25) < 1e-7
     assert model_node.get_option(node, "diffuse_model") == "lambert"
     assert not model_node.surface_input(node, "normal").is_linked
-    assert all(fc.data_path.startswith('nodes["Cook-Torrance"]')
-               for fc in mat.node_tree.animation_data.drivers)
+    assert all(
+        fc.data_path.startswith('nodes["Cook-Torrance"]')
+        for fc in mat.node_tree.animation_data.drivers
+    )
     # the Sun 3 + 3, the strength, the Point light (slot 1): position, direction, colour 3 each,
     # radius; no stale ones
     assert len(mat.node_tree.animation_data.drivers) == 17
@@ -342,8 +378,10 @@ def test_switch_implementation_and_view_on_all(addon):
     assert "Open Shading Language is off" in model_node.osl_unavailable_reason(scene)
     bpy.ops.ctlab.new_material(implementation="nodes")
     assert bpy.ops.ctlab.set_view_all(view="spec_color") == {'FINISHED'}
-    assert [model_node.get_option(n, "view") for _, n in model_node.model_materials()] == \
-        ["spec_color", "spec_color"]
+    assert [model_node.get_option(n, "view") for _, n in model_node.model_materials()] == [
+        "spec_color",
+        "spec_color",
+    ]
 
 
 def test_panels_draw_for_model_other_and_no_material(addon):
@@ -356,8 +394,12 @@ def test_panels_draw_for_model_other_and_no_material(addon):
     bpy.ops.ctlab.new_material(implementation="osl")
     osl_mat = cube.active_material
     seen = {}
-    for label, mat in (("nodes", nodes_mat), ("osl", osl_mat), ("principled", principled),
-                       ("none", None)):
+    for label, mat in (
+        ("nodes", nodes_mat),
+        ("osl", osl_mat),
+        ("principled", principled),
+        ("none", None),
+    ):
         assert ui.CTLAB_PT_material.poll(types.SimpleNamespace(object=cube, material=mat))
         for panel in ui.PANELS:
             seen[label, panel.__name__] = draw(panel, object=cube, material=mat)
@@ -381,23 +423,23 @@ def test_panels_draw_for_model_other_and_no_material(addon):
 
 
 def test_preferences_draw_and_are_read(addon, tmp_path):
-    entry = bpy.context.preferences.addons.new()      # enabled under the package's name
+    entry = bpy.context.preferences.addons.new()  # enabled under the package's name
     entry.module = preferences.PACKAGE
     try:
         prefs = preferences.get()
         assert isinstance(prefs, preferences.CTLAB_AddonPreferences)
         layout = StubLayout()
 
-        class Panel:                 # the preferences with a stub layout
+        class Panel:  # the preferences with a stub layout
             def __getattr__(self, name):
                 return layout if name == "layout" else getattr(prefs, name)
+
         preferences.CTLAB_AddonPreferences.draw(Panel(), bpy.context)
-        assert [c[1] for c in layout.calls] == ["implementation", "hdri", "cache_folder",
-                                                "samples"]
+        assert [c[1] for c in layout.calls] == ["implementation", "hdri", "cache_folder", "samples"]
         prefs.implementation = "osl"
         cube = bpy.data.objects["Cube"]
         bpy.context.view_layer.objects.active = cube
-        bpy.ops.ctlab.new_material()          # the preferences' implementation
+        bpy.ops.ctlab.new_material()  # the preferences' implementation
         assert model_node.implementation(model_node.find(cube.active_material)) == "osl"
     finally:
         bpy.context.preferences.addons.remove(entry)
@@ -407,6 +449,7 @@ def test_render_comparison_in_the_background(addon, tmp_path):
     """The job runs in another process: progress rises to 1, the report is written; a second
     job cancelled after its first render keeps that render whole and leaves no partial file."""
     import time
+
     wm = bpy.context.window_manager
     kw = dict(rows=2, cols=2, size=32, samples=2, open_report=False)
 
@@ -414,7 +457,7 @@ def test_render_comparison_in_the_background(addon, tmp_path):
         start = time.monotonic()
         seen = []
         while time.monotonic() - start < limit:
-            operators._job_tick()          # what the timer calls (no event loop headless)
+            operators._job_tick()  # what the timer calls (no event loop headless)
             seen.append(wm.ctlab_job_progress)
             if done():
                 return seen
@@ -424,11 +467,12 @@ def test_render_comparison_in_the_background(addon, tmp_path):
     # the scene a user has after Build Sphere Matrix: its default Sun has negative x and y
     # (which the job's command line used to misread), a world with strength and rotation
     assert bpy.ops.ctlab.build_sphere_matrix(rows=2, cols=2, resolution=32) == {'FINISHED'}
-    background, mapping = (next(n for n in bpy.context.scene.world.node_tree.nodes
-                                if n.bl_idname == kind)
-                           for kind in ("ShaderNodeBackground", "ShaderNodeMapping"))
+    background, mapping = (
+        next(n for n in bpy.context.scene.world.node_tree.nodes if n.bl_idname == kind)
+        for kind in ("ShaderNodeBackground", "ShaderNodeMapping")
+    )
     background.inputs["Strength"].default_value = 1.5
-    mapping.inputs["Rotation"].default_value[2] = -0.5                # radians
+    mapping.inputs["Rotation"].default_value[2] = -0.5  # radians
     sun = next(o for o in bpy.context.scene.objects if o.type == 'LIGHT' and o.data.type == 'SUN')
     to_light = tuple(sun.matrix_world.to_quaternion() @ Vector((0.0, 0.0, 1.0)))
     assert min(to_light[:2]) < 0
@@ -440,7 +484,7 @@ def test_render_comparison_in_the_background(addon, tmp_path):
     job = operators.JOBS["comparison"]
     assert job.state == "done", "\n".join(job.lines[-20:])
     assert wm.ctlab_job_progress == 1.0 and (out / "report.html").is_file()
-    assert seen == sorted(seen) and len(set(seen)) >= 3, seen     # it moved, never backwards
+    assert seen == sorted(seen) and len(set(seen)) >= 3, seen  # it moved, never backwards
     scene = json.loads((out / "cook_torrance" / "scene.json").read_text())
     assert scene["sun"]["to_light"] == pytest.approx(to_light, abs=1e-6)
     assert scene["sun"]["irradiance"] == pytest.approx([sun.data.energy] * 3)
@@ -455,12 +499,16 @@ def test_render_comparison_in_the_background(addon, tmp_path):
     assert bpy.ops.ctlab.cancel_comparison() == {'FINISHED'}
     run_until(lambda: operators.JOBS["comparison"].state == "cancelled", limit=60)
     from addon.core.compare import read_image
+
     assert read_image(out / "cook_torrance" / "render.exr").shape == (32, 32, 3)
     assert not (out / "report.html").exists()
     # nothing half-written; the task graph's markers (.tasks/) record the renders that
     # finished, so a rerun resumes (docs/usage.md, "Batch jobs as task graphs")
-    leftovers = [p.name for p in out.rglob("*") if "partial" in p.name or
-                 (p.name.startswith(".") and p.name != ".tasks")]
+    leftovers = [
+        p.name
+        for p in out.rglob("*")
+        if "partial" in p.name or (p.name.startswith(".") and p.name != ".tasks")
+    ]
     assert not leftovers, leftovers
     assert all(m.suffix == ".json" for m in (out / ".tasks").iterdir())
 
@@ -474,6 +522,7 @@ def test_brdf_plot_of_the_active_material(addon, tmp_path):
     plot); a linked input is reported and plotted at its socket's value; a material that is
     not the model cannot be plotted."""
     import time
+
     cube = bpy.data.objects["Cube"]
     bpy.context.view_layer.objects.active = cube
     bpy.ops.ctlab.new_material(implementation="nodes")
@@ -497,11 +546,16 @@ def test_brdf_plot_of_the_active_material(addon, tmp_path):
 
     data = plot(tmp_path / "a")
     p = data["parameters"]
-    assert (p["metallic"], p["smoothness"], p["g_model"], p["shader"]) == \
-        (1.0, pytest.approx(0.7), "smith_ggx_correlated", "nodes")
+    assert (p["metallic"], p["smoothness"], p["g_model"], p["shader"]) == (
+        1.0,
+        pytest.approx(0.7),
+        "smith_ggx_correlated",
+        "nodes",
+    )
     assert p["albedo"] == pytest.approx([1.0, 0.5, 0.2])
     image = bpy.data.images[operators.PLOT_IMAGE]
     from addon.core.compare import read_image
+
     h, w, _ = read_image(tmp_path / "a" / "plot.png").shape
     assert tuple(image.size) == (w, h)
     assert bpy.context.window_manager.ctlab_plot_state == "done"
@@ -512,8 +566,7 @@ def test_brdf_plot_of_the_active_material(addon, tmp_path):
     mat.node_tree.links.new(tex.outputs[0], model_node.surface_input(node, "smoothness"))
     data = plot(tmp_path / "b", compare_g=True)
     assert data["parameters"]["smoothness"] == pytest.approx(0.7)
-    assert [v["tag"] for v in data["variants"]] == ["", "g-cook_torrance",
-                                                    "g-unity_smith_joint"]
+    assert [v["tag"] for v in data["variants"]] == ["", "g-cook_torrance", "g-unity_smith_joint"]
     assert bpy.data.images[operators.PLOT_IMAGE].filepath.endswith("b/plot.png")
     argv, notes = operators.plot_command(node, tmp_path)
     assert any("smoothness is linked" in n for n in notes)
@@ -528,8 +581,9 @@ def test_brdf_plot_of_the_active_material(addon, tmp_path):
         time.sleep(0.2)
     operators._job_tick()
     wm = bpy.context.window_manager
-    assert wm.ctlab_plot_state == "failed" and "holds a folder named lobe.svg" in \
-        wm.ctlab_plot_message, wm.ctlab_plot_message
+    assert (
+        wm.ctlab_plot_state == "failed" and "holds a folder named lobe.svg" in wm.ctlab_plot_message
+    ), wm.ctlab_plot_message
     assert not (tmp_path / "d" / "plot.json").exists()
     assert bpy.data.images[operators.PLOT_IMAGE].filepath.endswith("b/plot.png")
 
@@ -545,20 +599,35 @@ def test_scene_comparison_in_the_background(addon, tmp_path):
     import time
     from addon.blender import demo_scene, light_sync, materials
     from addon.core.model import ModelOptions
+
     scene, sphere, _other = demo_scene.build("hdri", 48, 36)
     register_scene = bpy.context.scene
     assert register_scene == scene
-    mat = materials.model_material("CT", "nodes", ModelOptions(
-        light_transport="scene", g_model="smith_ggx_correlated", diffuse_model="lambert",
-        ibl="split_sum"), **demo_scene.METAL)
+    mat = materials.model_material(
+        "CT",
+        "nodes",
+        ModelOptions(
+            light_transport="scene",
+            g_model="smith_ggx_correlated",
+            diffuse_model="lambert",
+            ibl="split_sum",
+        ),
+        **demo_scene.METAL,
+    )
     demo_scene.set_material(sphere, mat)
     light_sync.sync_material(mat, scene)
     out = tmp_path / "scene"
     # the operator's overrides reach the command line: here the OSL shader for the node
     # group's material (Smith and Lambert: the closures are the model exactly)
-    assert bpy.ops.ctlab.scene_comparison(directory=str(out), size=48, samples=4,
-                                          shader="osl", g_model="smith_ggx_correlated",
-                                          camera="Camera", open_report=False) == {'FINISHED'}
+    assert bpy.ops.ctlab.scene_comparison(
+        directory=str(out),
+        size=48,
+        samples=4,
+        shader="osl",
+        g_model="smith_ggx_correlated",
+        camera="Camera",
+        open_report=False,
+    ) == {'FINISHED'}
     job = operators.JOBS["comparison"]
     command = " ".join(job.process.args)
     assert "'--shader=osl'" in command and "'--g=smith_ggx_correlated'" in command
@@ -592,6 +661,7 @@ def test_the_panel_says_what_each_transport_sees_and_warns_of_inexact_settings(a
     (the startup file's Cycles defaults clamp indirect light at 10 and filter glossy at 1)
     and falls silent once the jobs' exact settings are set."""
     from addon.blender import renderer
+
     scene = bpy.context.scene
     cube = bpy.data.objects["Cube"]
     bpy.context.view_layer.objects.active = cube
@@ -600,9 +670,11 @@ def test_the_panel_says_what_each_transport_sees_and_warns_of_inexact_settings(a
     scene.render.engine = 'CYCLES'
 
     def labels():
-        return [c[1] for c in draw(ui.CTLAB_PT_material, object=cube, material=mat)
-                if c[0] == "label"]
-    assert mat.ctlab_light_transport == "scene"            # the UI's default
+        return [
+            c[1] for c in draw(ui.CTLAB_PT_material, object=cube, material=mat) if c[0] == "label"
+        ]
+
+    assert mat.ctlab_light_transport == "scene"  # the UI's default
     text = labels()
     assert any(t.startswith("Scene: path traced by Cycles") for t in text)
     (warning,) = [t for t in text if t.startswith("Not exact with")]
@@ -635,11 +707,15 @@ def test_light_sync_reports_slot_lights_without_a_key_sun(addon):
     assert mat.cycles.emission_sampling == 'NONE'
     mat.cycles.emission_sampling = 'AUTO'
     scene = bpy.context.scene
-    assert operators.sync_summary(scene, 1) == \
-        "1 material follow no key Sun; 1 light in slots (Light) and the world"
+    assert (
+        operators.sync_summary(scene, 1)
+        == "1 material follow no key Sun; 1 light in slots (Light) and the world"
+    )
     assert bpy.ops.ctlab.sync_lighting() == {'FINISHED'}
     assert mat.cycles.emission_sampling == 'NONE'
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
     scene.collection.objects.link(sun)
-    assert operators.sync_summary(scene, 2) == \
-        "2 materials follow the key Sun Sun; 1 light in slots (Light) and the world"
+    assert (
+        operators.sync_summary(scene, 2)
+        == "2 materials follow the key Sun Sun; 1 light in slots (Light) and the world"
+    )

@@ -1,6 +1,6 @@
-"""What differs between the Blender versions the add-on supports (addon/blender/compat.py), measured on
-the running one, and renders that may crash Blender run in child processes: a segmentation
-fault fails a test instead of killing the test run."""
+"""What differs between the Blender versions the add-on supports (addon/blender/compat.py),
+measured on the running one, and renders that may crash Blender run in child processes: a
+segmentation fault fails a test instead of killing the test run."""
 
 import re
 import subprocess
@@ -14,23 +14,50 @@ from helpers import ROOT
 from addon.blender import compat
 from addon.core import env_importance, ibl_bake, osl_source
 
-SHADER = osl_source.source()          # the shader with its parts inlined
+SHADER = osl_source.source()  # the shader with its parts inlined
 
 
 def _child(code: str, timeout=240) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=timeout, cwd=ROOT)
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout, cwd=ROOT
+    )
 
 
-@pytest.mark.parametrize("shader,ibl", [("osl", "reference"), ("osl", "split_sum"),
-                                        ("osl", "unity"), ("nodes", "split_sum"),
-                                        ("principled", "reference")])
+@pytest.mark.parametrize(
+    "shader,ibl",
+    [
+        ("osl", "reference"),
+        ("osl", "split_sum"),
+        ("osl", "unity"),
+        ("nodes", "split_sum"),
+        ("principled", "reference"),
+    ],
+)
 def test_each_shader_renders_in_a_child_process(tmp_path, shader, ibl):
     """The command line's render, as a user runs it; exit 139 (or -11) is Blender crashing."""
-    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "ctlab.py"), "render",
-                        "--shader", shader, "--ibl", ibl, "--grid", "2x2", "--size", "32",
-                        "--samples", "2", "--out", str(tmp_path / "out")],
-                       capture_output=True, text=True, timeout=240, cwd=ROOT)
+    p = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "scripts" / "ctlab.py"),
+            "render",
+            "--shader",
+            shader,
+            "--ibl",
+            ibl,
+            "--grid",
+            "2x2",
+            "--size",
+            "32",
+            "--samples",
+            "2",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
+        cwd=ROOT,
+    )
     assert p.returncode == 0, f"exit {p.returncode}:\n{p.stdout[-1500:]}\n{p.stderr[-1500:]}"
     assert (tmp_path / "out" / "render.exr").is_file()
 
@@ -103,6 +130,8 @@ def _define(name: str) -> int:
     match = re.search(rf"^#define {name} (\d+)$", SHADER, re.M)
     assert match, f"the shader defines no {name}"
     return int(match[1])
+
+
 def test_the_shaders_table_sizes_are_the_add_ons():
     """The shader reads the tables at texel centres of sizes it names itself; they must be
     the sizes the add-on writes (a table of another size would be read between texels)."""
@@ -114,6 +143,8 @@ def test_the_shaders_table_sizes_are_the_add_ons():
     for k in range(1, ibl_bake.LEVEL_COUNT):
         assert _define(f"LEVEL_{k}_WIDTH") == ibl_bake.LEVEL_WIDTHS[k]
     assert _define("IRRADIANCE_WIDTH") == ibl_bake.IRRADIANCE_WIDTH
+
+
 def test_the_shader_avoids_what_crashes_or_misreads_on_some_version():
     """gettextureinfo() crashes Cycles 5.2 while it optimises the shader; a texture() whose file
     name varies while shading (format() of a varying level) reads no image there; only

@@ -23,8 +23,8 @@ def _directions(width):
     h = width // 2
     s = (np.arange(width) + 0.5) / width
     t = 1.0 - (np.arange(h) + 0.5) / h
-    phi = (0.5 - s) * 2 * np.pi                       # atan2(y, x)
-    theta = (t - 0.5) * np.pi                         # elevation
+    phi = (0.5 - s) * 2 * np.pi  # atan2(y, x)
+    theta = (t - 0.5) * np.pi  # elevation
     P, T = np.meshgrid(phi, theta)
     return np.stack([np.cos(T) * np.cos(P), np.cos(T) * np.sin(P), np.sin(T)], -1), T
 
@@ -56,13 +56,13 @@ def _forest_world(rotation_z, mix_black):
     env.image = bpy.data.images.load(str(FOREST), check_existing=True)
     nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
     nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
-    if mix_black:                                 # black at factor 0: the image, but a bake
+    if mix_black:  # black at factor 0: the image, but a bake
         mix = nt.nodes.new("ShaderNodeMix")
         mix.data_type = 'RGBA'
         mix.inputs["Factor"].default_value = 0.0
-        mix.inputs[7].default_value = (0.0, 0.0, 0.0, 1.0)           # B (RGBA)
-        nt.links.new(env.outputs["Color"], mix.inputs[6])             # A (RGBA)
-        nt.links.new(mix.outputs[2], background.inputs["Color"])      # Result (RGBA)
+        mix.inputs[7].default_value = (0.0, 0.0, 0.0, 1.0)  # B (RGBA)
+        nt.links.new(env.outputs["Color"], mix.inputs[6])  # A (RGBA)
+        nt.links.new(mix.outputs[2], background.inputs["Color"])  # Result (RGBA)
     else:
         nt.links.new(env.outputs["Color"], background.inputs["Color"])
     return world, background, mapping
@@ -80,7 +80,7 @@ def test_a_baked_forest_is_the_forest_file_turned_by_its_mapping(fresh):
     scenes = [s.name for s in bpy.data.scenes]
     path = world_bake.bake_world(world, 1024)
     assert [s.name for s in bpy.data.scenes] == scenes and world.name in bpy.data.worlds
-    assert background.inputs["Strength"].default_value == 2.5           # the user's world
+    assert background.inputs["Strength"].default_value == 2.5  # the user's world
     assert [w.name for w in bpy.data.worlds] == ["Forest"] and not bpy.data.cameras
     baked = read_image(path)
     forest = read_image(FOREST)
@@ -109,7 +109,7 @@ def test_the_environment_texture_alone_is_used_directly_and_unbaked(fresh):
     scene.world = world
     assert light_sync.environment_file(scene) == FOREST
     assert light_sync.world_label(scene) == "HDRI: forest.exr"
-    mapping.inputs["Rotation"].default_value[0] = 0.2       # not about Z: baked
+    mapping.inputs["Rotation"].default_value[0] = 0.2  # not about Z: baked
     assert drivers.world_lighting(world).kind == "baked"
     assert light_sync.world_hdri_path(scene) == ""
 
@@ -144,15 +144,17 @@ def test_a_gradient_world_bakes_to_its_formula_at_each_texel_centre(fresh):
     world, _ = _gradient_world()
     baked = read_image(world_bake.bake_world(world, 256))
     d, _ = _directions(256)
-    expected = np.stack([np.maximum(d[..., 2], 0), 0.5 * d[..., 0] + 0.5,
-                         0.5 * d[..., 1] + 0.5], -1)
+    expected = np.stack(
+        [np.maximum(d[..., 2], 0), 0.5 * d[..., 0] + 0.5, 0.5 * d[..., 1] + 0.5], -1
+    )
     assert baked.shape == expected.shape
     # one sample at each pixel centre: the filter's 0.01-pixel box leaves < 1e-4
     assert np.abs(baked - expected).max() < 2e-4, np.abs(baked - expected).max()
 
 
 def test_an_unchanged_world_comes_from_the_cache_and_a_changed_one_is_baked_again(
-        fresh, tmp_path, monkeypatch):
+    fresh, tmp_path, monkeypatch
+):
     monkeypatch.setenv("CTLAB_CACHE", str(tmp_path))
     world, side = _gradient_world()
     renders = []
@@ -161,13 +163,13 @@ def test_an_unchanged_world_comes_from_the_cache_and_a_changed_one_is_baked_agai
     first = world_bake.bake_world(world, 64)
     assert len(renders) == 1 and first.is_file() and tmp_path in first.parents
     again = world_bake.bake_world(world, 64)
-    assert again == first and len(renders) == 1               # not rendered again
-    side.inputs[2].default_value = 0.25                       # one input value changed
+    assert again == first and len(renders) == 1  # not rendered again
+    side.inputs[2].default_value = 0.25  # one input value changed
     changed = world_bake.bake_world(world, 64)
     assert changed != first and len(renders) == 2
     d, _ = _directions(64)
     np.testing.assert_allclose(read_image(changed)[..., 1], 0.5 * d[..., 0] + 0.25, atol=2e-4)
-    assert world_bake.bake_world(world, 128) != changed and len(renders) == 3   # the width
+    assert world_bake.bake_world(world, 128) != changed and len(renders) == 3  # the width
     # a damaged entry is baked again, never used
     changed.write_bytes(b"not an exr")
     assert world_bake.bake_world(world, 64) == changed and len(renders) == 4
@@ -204,7 +206,7 @@ def test_a_sky_texture_bakes_finite_with_its_sun_brightest_and_its_light_kept(fr
         assert total.max() > 1000 * np.median(total)
         peaks.append(col)
         light.append(_integral(baked))
-    shift = (peaks[1] - peaks[0]) % 512          # a quarter turn of the sun: 128 columns
+    shift = (peaks[1] - peaks[0]) % 512  # a quarter turn of the sun: 128 columns
     assert min(abs(shift - 128), abs(shift - 384)) <= 2, peaks
     assert max(light) / min(light) < 1.02, light
 
@@ -253,8 +255,9 @@ def test_a_sky_world_lights_the_model_baked_with_its_strength_driven_and_no_rota
     assert read_image(path).shape == (512, 1024, 3)
     assert light_sync.world_label(scene) == "World: baked from its nodes (Sky Texture)"
     sources = _driver_sources(mat, node)
-    assert sources["HDRI Strength"] == \
-        f'node_tree.nodes["{background.name}"].inputs[1].default_value'
+    assert (
+        sources["HDRI Strength"] == f'node_tree.nodes["{background.name}"].inputs[1].default_value'
+    )
     assert "HDRI Rotation" not in sources and node.inputs["HDRI Rotation"].default_value == 0
     # the strength inside the bake (linked): HDRI Strength is 1, no driver
     value = nt.nodes.new("ShaderNodeValue")

@@ -15,14 +15,25 @@ from reference_model import specular_albedo
 def _expected_image(scene, g_model):
     """Per pixel, the quadrature's E(n.v) (interpolated on a grid of n.v) at that pixel's n.v."""
     img = np.zeros((scene["height"], scene["width"], 3), dtype=np.float32)
-    yy, xx = np.mgrid[0:scene["height"], 0:scene["width"]] + 0.5
+    yy, xx = np.mgrid[0 : scene["height"], 0 : scene["width"]] + 0.5
     mus = np.linspace(0.02, 1.0, 25)
     for cell in scene["cells"]:
-        if cell["smoothness"] > 0.7:    # lobes narrower than the quadrature grid resolves
+        if cell["smoothness"] > 0.7:  # lobes narrower than the quadrature grid resolves
             continue
-        table = [float(specular_albedo(mu, (1.0, 1.0, 1.0), 1.0, cell["smoothness"],
-                                       g_model=g_model, n_theta=300, n_phi=240)[0])
-                 for mu in mus]
+        table = [
+            float(
+                specular_albedo(
+                    mu,
+                    (1.0, 1.0, 1.0),
+                    1.0,
+                    cell["smoothness"],
+                    g_model=g_model,
+                    n_theta=300,
+                    n_phi=240,
+                )[0]
+            )
+            for mu in mus
+        ]
         cx, cy = cell["center_px"]
         d = np.hypot(xx - cx, yy - cy) / cell["radius_px"]
         inside = d < 1
@@ -45,9 +56,10 @@ def test_furnace_albedo_matches_quadrature_and_never_exceeds_one(furnace):
     curves, expected = furnace
     for g in curves:
         for got, want in zip(curves[g], expected[g]):
-            for theta, e, x, n in zip(got["theta_deg"], got["albedo"], want["albedo"],
-                                      got["pixels"]):
-                if e is None:                 # no pixel at that view angle
+            for theta, e, x, n in zip(
+                got["theta_deg"], got["albedo"], want["albedo"], got["pixels"]
+            ):
+                if e is None:  # no pixel at that view angle
                     continue
                 assert e <= 1.0 + 0.01, (g, got["smoothness"], theta, e)
                 if n >= 40 and theta < 80 and got["smoothness"] < 0.7:
@@ -62,7 +74,7 @@ def test_cook_torrance_g_keeps_more_energy_than_smith_when_rough(furnace):
     by_s = {round(c["smoothness"], 2): i for i, c in enumerate(ct)}
     rough = by_s[0.0]
     assert energy.mean_albedo(ct[rough]) > energy.mean_albedo(smith[rough]) + 0.08
-    assert ct[rough]["albedo"][7] > smith[rough]["albedo"][7] + 0.15        # 70-80 degrees
+    assert ct[rough]["albedo"][7] > smith[rough]["albedo"][7] + 0.15  # 70-80 degrees
     smooth = by_s[1.0]
     assert abs(energy.mean_albedo(ct[smooth]) - energy.mean_albedo(smith[smooth])) < 0.01
     # and single scattering loses energy with roughness, monotonically
@@ -77,9 +89,11 @@ def test_compensated_energy_fills_the_white_furnace(ibl, tmp_path):
     [0.97, 1.01] at every roughness and resolved view angle, for every G, through the
     reference integration and the split-sum (single scattering loses up to 60%)."""
     from addon.core.model import G_MODELS
+
     for g in G_MODELS:
-        scene = pipeline.render_one(energy.furnace_settings(g, energy="compensated", ibl=ibl),
-                                    tmp_path / g, 16)
+        scene = pipeline.render_one(
+            energy.furnace_settings(g, energy="compensated", ibl=ibl), tmp_path / g, 16
+        )
         curves = energy.directional_albedo(read_image(tmp_path / g / "render.exr"), scene)
         seen = 0
         for curve in curves:
@@ -98,23 +112,25 @@ def test_compensation_saturates_a_coloured_metal(tmp_path):
     scattering one is 1 + F_ms (1 - E)/E (E the rendered uncompensated albedo of a white metal,
     F_ms from Schlick's average), within 3%; blue gains less than red."""
     from addon.core.settings import with_overrides
+
     gold = (1.0, 0.766, 0.336)
     means = {}
     for mode in ("none", "compensated"):
         for albedo in (gold, (1.0, 1.0, 1.0)):
-            s = with_overrides(energy.furnace_settings("smith_ggx_correlated", energy=mode),
-                               {"albedo": albedo})
+            s = with_overrides(
+                energy.furnace_settings("smith_ggx_correlated", energy=mode), {"albedo": albedo}
+            )
             folder = tmp_path / f"{mode}-{albedo[2]}"
             scene = pipeline.render_one(s, folder, 16)
             img = read_image(folder / "render.exr")
-            cell = max(scene["cells"], key=lambda c: -c["smoothness"])     # the roughest
+            cell = max(scene["cells"], key=lambda c: -c["smoothness"])  # the roughest
             cx, cy = cell["center_px"]
-            yy, xx = np.mgrid[0:img.shape[0], 0:img.shape[1]] + 0.5
-            inside = np.hypot(xx - cx, yy - cy) < 0.5 * cell["radius_px"]   # n.v > 0.87
+            yy, xx = np.mgrid[0 : img.shape[0], 0 : img.shape[1]] + 0.5
+            inside = np.hypot(xx - cx, yy - cy) < 0.5 * cell["radius_px"]  # n.v > 0.87
             means[mode, albedo[2]] = img[inside][:, :3].mean(axis=0)
     single, compensated = means["none", gold[2]], means["compensated", gold[2]]
     E = means["none", 1.0].mean()
-    e_avg = 0.409                                 # Smith's E_avg at pr = 1 (ms table)
+    e_avg = 0.409  # Smith's E_avg at pr = 1 (ms table)
     f_avg = np.array(gold) + (1 - np.array(gold)) / 21
     f_ms = f_avg * e_avg / (1 - f_avg * (1 - e_avg))
     want = 1 + f_ms * (1 - E) / E

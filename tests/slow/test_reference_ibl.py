@@ -43,8 +43,15 @@ def expected(n, v, albedo, metallic, smoothness, n_theta=192, n_phi=384):
     for i in range(len(n)):
         l = local @ np.stack([t[i], b[i], n[i]])
         up = l[:, 2] > 0
-        tr = terms(np.broadcast_to(n[i], l.shape), v, l, np.broadcast_to(albedo, l.shape),
-                   np.full(len(l), metallic), np.full(len(l), smoothness), diffuse="lambert")
+        tr = terms(
+            np.broadcast_to(n[i], l.shape),
+            v,
+            l,
+            np.broadcast_to(albedo, l.shape),
+            np.full(len(l), metallic),
+            np.full(len(l), smoothness),
+            diffuse="lambert",
+        )
         f = tr["specular_brdf"] + tr["diffuse_brdf"]
         out[i] = np.sum(f * (w * up)[:, None], axis=0)
     return out
@@ -60,23 +67,33 @@ def test_reference_ibl_under_a_half_sky_matches_quadrature(tmp_path, sky, metall
     (Rendered with the usual jittered samples instead, a glossy metal's pixels average their
     footprint and read up to +0.9%: the test compares pixel centres with pixel centres.)"""
     albedo = (0.8, 0.6, 0.4)
-    kw = dict(grid=(3, 1), size=96, hdri=sky, sun_strength=0.0, albedo=albedo,
-              diffuse_model="lambert", metallic=metallic, mutual_shadows=False)
-    img, scene = render(tmp_path, view="indirect", samples=1, pixel_centres=True,
-                        env_samples=256, **kw)
+    kw = dict(
+        grid=(3, 1),
+        size=96,
+        hdri=sky,
+        sun_strength=0.0,
+        albedo=albedo,
+        diffuse_model="lambert",
+        metallic=metallic,
+        mutual_shadows=False,
+    )
+    img, scene = render(
+        tmp_path, view="indirect", samples=1, pixel_centres=True, env_samples=256, **kw
+    )
     normal, _ = render(tmp_path / "n", view="normal", **kw)
     rng = np.random.default_rng(0)
     for cell in scene["cells"]:
         if cell["smoothness"] == 1.0:
-            continue                    # a mirror's lobe is below any quadrature grid
+            continue  # a mirror's lobe is below any quadrature grid
         m = sphere_pixels(scene, cell, margin_px=2)
         ys, xs = np.nonzero(m)
         pick = rng.choice(len(ys), size=150, replace=False)
         n = normal[ys[pick], xs[pick]].astype(np.float64)
         n /= np.linalg.norm(n, axis=1, keepdims=True)
-        want = expected(n, np.array(scene["to_camera"]), np.array(albedo), metallic,
-                        cell["smoothness"])
+        want = expected(
+            n, np.array(scene["to_camera"]), np.array(albedo), metallic, cell["smoothness"]
+        )
         got = img[ys[pick], xs[pick]].astype(np.float64)
         rel = (got - want) / want
         assert abs(rel.mean()) < 0.008, rel.mean()
-        assert np.sqrt((rel ** 2).mean()) < 0.04
+        assert np.sqrt((rel**2).mean()) < 0.04

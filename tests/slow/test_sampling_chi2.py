@@ -27,7 +27,7 @@ from addon.core.env_importance import tables_for
 from addon.core.hdri import write_float_exr
 
 PROBE = ROOT / "tests" / "osl" / "sampling_probe.osl"
-SIZE = 1024                                   # the renders: SIZE x SIZE pixels
+SIZE = 1024  # the renders: SIZE x SIZE pixels
 assert (chi2.EVAL_ROWS, chi2.EVAL_COLS) == (SIZE, SIZE)
 
 
@@ -36,8 +36,8 @@ def _unit(*v):
     return v / np.linalg.norm(v)
 
 
-N_UP = _unit(0.35, -0.55, 0.76)               # tilted, z > 0
-N_DOWN = _unit(-0.6, 0.25, -0.55)             # tilted, z < 0: make_frame's other branch
+N_UP = _unit(0.35, -0.55, 0.76)  # tilted, z > 0
+N_DOWN = _unit(-0.6, 0.25, -0.55)  # tilted, z < 0: make_frame's other branch
 
 
 def _view(n, incidence_deg):
@@ -52,13 +52,14 @@ def _view(n, incidence_deg):
 class Run:
     """One sampler configuration. kind: "brdf" (sample_brdf / brdf_pdf), "env" (env_sample /
     env_pdf) or "mis" (half the samples each; (brdf_pdf + env_pdf) / 2)."""
+
     kind: str
     seed: int
     alpha: float = 0.5
     incidence: float = 0.0
     p_spec: float = 1.0
     normal: tuple = tuple(N_UP)
-    rotation: float = 1.0                      # the HDRI's rotation (radians), env and mis
+    rotation: float = 1.0  # the HDRI's rotation (radians), env and mis
 
     @property
     def view(self):
@@ -70,12 +71,13 @@ RUNS = {
     "ggx a=0.5 70deg": Run("brdf", 2, alpha=0.5, incidence=70.0),
     "ggx a=1.0 0deg": Run("brdf", 3, alpha=1.0, incidence=0.0),
     "cosine": Run("brdf", 4, alpha=0.5, incidence=40.0, p_spec=0.0, normal=tuple(N_DOWN)),
-    "mixture a=0.3 45deg": Run("brdf", 5, alpha=0.3, incidence=45.0, p_spec=0.5,
-                               normal=tuple(N_DOWN)),
+    "mixture a=0.3 45deg": Run(
+        "brdf", 5, alpha=0.3, incidence=45.0, p_spec=0.5, normal=tuple(N_DOWN)
+    ),
     "environment": Run("env", 6),
     "mis": Run("mis", 7, alpha=0.3, incidence=50.0, p_spec=0.5),
 }
-LEVEL = chi2.sidak(len(RUNS))                 # each run's p-value must exceed this
+LEVEL = chi2.sidak(len(RUNS))  # each run's p-value must exceed this
 
 
 def _sky(height=128, width=256):
@@ -85,10 +87,12 @@ def _sky(height=128, width=256):
     s = (np.arange(width) + 0.5) / width
     elev = (0.5 - t)[:, None] * np.pi
     phi = (0.5 - s)[None, :] * 2 * np.pi
-    d = np.stack([np.cos(elev) * np.cos(phi), np.cos(elev) * np.sin(phi),
-                  np.sin(elev) * np.ones_like(phi)], axis=-1)
+    d = np.stack(
+        [np.cos(elev) * np.cos(phi), np.cos(elev) * np.sin(phi), np.sin(elev) * np.ones_like(phi)],
+        axis=-1,
+    )
     sky = 0.3 + 0.7 * (0.5 + 0.5 * d[..., 2])
-    blob = 40.0 * np.exp((d @ _unit(0.5, 0.6, 0.62) - 1.0) / 0.02)       # 1/e at 11 deg
+    blob = 40.0 * np.exp((d @ _unit(0.5, 0.6, 0.62) - 1.0) / 0.02)  # 1/e at 11 deg
     rgb = (sky + blob)[..., None] * np.array([0.8, 0.9, 1.1])
     return rgb.astype(np.float32)
 
@@ -112,13 +116,17 @@ class Probe:
         self.textures = {}
         for name in ("rand_u", "rand_w", "dir_in"):
             color = pixel_grid.image_input(
-                tree, pixel_grid.data_image(f"ctlab_{name}", np.zeros((1, 1, 3))))
+                tree, pixel_grid.data_image(f"ctlab_{name}", np.zeros((1, 1, 3)))
+            )
             tree.links.new(color, osl_shader.socket(self.node, name))
             self.textures[name] = color.node
         plane.data.materials.append(mat)
         tables = tables_for(hdri)
-        self.set(env_marginal=tables["marginal"], env_conditional=tables["conditional"],
-                 env_pdf_table=tables["pdf"])
+        self.set(
+            env_marginal=tables["marginal"],
+            env_conditional=tables["conditional"],
+            env_pdf_table=tables["pdf"],
+        )
         renderer.configure(self.scene, "osl", "D", 1, pixel_centres=True)
 
     def set(self, **params):
@@ -130,18 +138,26 @@ class Probe:
 
     def render(self, mode: str, run: Run | None = None, **params) -> np.ndarray:
         if run is not None:
-            params = dict(n_in=tuple(run.normal), v_in=tuple(run.view), alpha=run.alpha,
-                          p_spec=run.p_spec, rotation=run.rotation,
-                          tex_bottom_up=int(compat.osl_texture_rows_bottom_up())) | params
+            params = (
+                dict(
+                    n_in=tuple(run.normal),
+                    v_in=tuple(run.view),
+                    alpha=run.alpha,
+                    p_spec=run.p_spec,
+                    rotation=run.rotation,
+                    tex_bottom_up=int(compat.osl_texture_rows_bottom_up()),
+                )
+                | params
+            )
         self.set(mode=mode, **params)
         return pixel_grid.render(self.scene, os.devnull).astype(np.float64)
 
 
 @dataclass
 class Samples:
-    dirs: np.ndarray                           # (SIZE, SIZE, 3); 0 where invalid
+    dirs: np.ndarray  # (SIZE, SIZE, 3); 0 where invalid
     valid: np.ndarray
-    rand: dict = field(default_factory=dict)   # the uniform numbers the draw used
+    rand: dict = field(default_factory=dict)  # the uniform numbers the draw used
 
     @property
     def observed(self):
@@ -163,7 +179,7 @@ class Lab:
             rand_u = chi2.uniform(rng, (SIZE, SIZE, 3))
             rand_w = chi2.uniform(rng, (SIZE, SIZE, 3))
             rand_w[..., 2] = 0.0
-            rand_w[SIZE // 2:, :, 2] = 1.0       # mis: the lower half of the rows samples the env
+            rand_w[SIZE // 2 :, :, 2] = 1.0  # mis: the lower half of the rows samples the env
             dirs = self.probe.render(f"{run.kind}_sample", run, rand_u=rand_u, rand_w=rand_w)
             valid = np.any(dirs != 0.0, axis=-1)
             self._samples[name] = Samples(dirs, valid, {"rand_u": rand_u, "rand_w": rand_w})
@@ -174,8 +190,9 @@ class Lab:
         key = (name, mode, tuple(sorted(params.items())))
         if key not in self._pdfs:
             run = RUNS[name]
-            self._pdfs[key] = self.probe.render(mode or f"{run.kind}_pdf", run,
-                                                dir_in=self.eval_dirs, **params)[..., 0]
+            self._pdfs[key] = self.probe.render(
+                mode or f"{run.kind}_pdf", run, dir_in=self.eval_dirs, **params
+            )[..., 0]
         return self._pdfs[key]
 
     def expected(self, pdf: np.ndarray) -> np.ndarray:
@@ -207,10 +224,13 @@ def _check(lab: Lab, name: str) -> chi2.Chi2Result:
     result = lab.test(name)
     print(f"{name}: {result}")
     assert result.p_value > LEVEL, f"{name}: the samples do not follow the density: {result}"
-    assert abs(result.integral - result.valid_fraction) <= \
-        INTEGRAL_SIGMAS * result.valid_stderr + INTEGRAL_SLACK, \
-        f"{name}: the density integrates to {result.integral:.5f}, not to the valid " \
+    assert (
+        abs(result.integral - result.valid_fraction)
+        <= INTEGRAL_SIGMAS * result.valid_stderr + INTEGRAL_SLACK
+    ), (
+        f"{name}: the density integrates to {result.integral:.5f}, not to the valid "
         f"fraction {result.valid_fraction:.5f}: {result}"
+    )
     return result
 
 
@@ -222,10 +242,12 @@ def test_chi2_survival_function_matches_closed_forms():
     incomplete gamma). Catches a wrong series or continued fraction."""
     for x in (0.01, 0.5, 1.0, 2.0, 3.5, 10.0, 40.0, 200.0):
         assert chi2.chi2_sf(x, 2) == pytest.approx(math.exp(-x / 2), rel=1e-10, abs=1e-300)
-        assert chi2.chi2_sf(x, 1) == pytest.approx(math.erfc(math.sqrt(x / 2)), rel=1e-9,
-                                                   abs=1e-300)
-        assert chi2.chi2_sf(x, 4) == pytest.approx(math.exp(-x / 2) * (1 + x / 2), rel=1e-10,
-                                                   abs=1e-300)
+        assert chi2.chi2_sf(x, 1) == pytest.approx(
+            math.erfc(math.sqrt(x / 2)), rel=1e-9, abs=1e-300
+        )
+        assert chi2.chi2_sf(x, 4) == pytest.approx(
+            math.exp(-x / 2) * (1 + x / 2), rel=1e-10, abs=1e-300
+        )
     # Wilson-Hilferty: (X/k)^(1/3) is nearly normal, mean 1 - 2/(9k), variance 2/(9k)
     k = 6000
     for z in (-2.0, 0.0, 2.0, 3.0):
@@ -233,6 +255,8 @@ def test_chi2_survival_function_matches_closed_forms():
         assert chi2.chi2_sf(x, k) == pytest.approx(0.5 * math.erfc(z / math.sqrt(2)), abs=2e-4)
     assert chi2.sidak(1) == pytest.approx(0.01)
     assert chi2.sidak(7) == pytest.approx(1 - 0.99 ** (1 / 7))
+
+
 def test_chi2_harness_on_numpy_draws():
     """The harness on an exact sampler (uniform directions, numpy) passes, and on the same
     draws against a density 10% off fails; the evaluation points' weights integrate a
@@ -262,6 +286,7 @@ def test_chi2_harness_on_numpy_draws():
 # ---------------------------------------------------------------------------------------
 # The probe
 
+
 def test_the_probe_reads_its_inputs_exactly(lab):
     """Per-pixel numbers (here in [-1, 1), as directions are) reach the shader and come back
     in the render bit for bit: an Image Texture read at each pixel's centre in OSL mode (on
@@ -270,13 +295,15 @@ def test_the_probe_reads_its_inputs_exactly(lab):
     probe's samples not those of the numbers the test drew."""
     values = 2.0 * chi2.uniform(np.random.default_rng(99), (SIZE, SIZE, 3)) - 1.0
     echo = lab.probe.render("echo", rand_u=values)
-    assert np.array_equal(echo, values.astype(np.float64)), \
+    assert np.array_equal(echo, values.astype(np.float64)), (
         f"max error {np.abs(echo - values).max():.3g}"
+    )
 
 
 # ---------------------------------------------------------------------------------------
 # The samplers: each must pass at the Sidak level, and its density integrate to its valid
 # fraction
+
 
 @pytest.mark.parametrize("name", ["ggx a=0.1 30deg", "ggx a=0.5 70deg", "ggx a=1.0 0deg"])
 def test_ggx_lobe_follows_its_pdf(lab, name):
@@ -319,11 +346,14 @@ def test_environment_sampler_follows_its_pdf(lab):
     u3, u4 = s.rand["rand_u"][..., 2], s.rand["rand_w"][..., 0]
     at_edge = np.minimum(np.minimum(u3, 1 - u3), np.minimum(u4, 1 - u4)) < 1e-3
     off = valid & (rel > 1e-4)
-    print(f"returned pdf != env_pdf at {off.sum()} draws, {(off & at_edge).sum()} of them at "
-          f"a tile's edge")
-    assert not (off & ~at_edge).any(), \
-        f"{(off & ~at_edge).sum()} draws away from tiles' edges: returned pdf != env_pdf " \
+    print(
+        f"returned pdf != env_pdf at {off.sum()} draws, {(off & at_edge).sum()} of them at "
+        f"a tile's edge"
+    )
+    assert not (off & ~at_edge).any(), (
+        f"{(off & ~at_edge).sum()} draws away from tiles' edges: returned pdf != env_pdf "
         f"(worst rel {rel[valid & ~at_edge].max():.3g})"
+    )
 
 
 def test_mis_mixture_follows_the_balance_heuristic_density(lab):
@@ -337,6 +367,7 @@ def test_mis_mixture_follows_the_balance_heuristic_density(lab):
 # ---------------------------------------------------------------------------------------
 # Mutants: the same samples against a wrong density must fail
 
+
 def test_mutant_pdf_10_percent_too_large_fails(lab):
     """The grazing GGX lobe's samples against 1.1 x brdf_pdf: rejected at the Sidak level (and
     its integral is off the valid fraction). Shows that the test can fail."""
@@ -344,8 +375,10 @@ def test_mutant_pdf_10_percent_too_large_fails(lab):
     result = lab.test(name, 1.1 * lab.pdf(name))
     print(f"mutant 1.1 x pdf: {result}")
     assert result.p_value < LEVEL, result
-    assert abs(result.integral - result.valid_fraction) > \
-        INTEGRAL_SIGMAS * result.valid_stderr + INTEGRAL_SLACK
+    assert (
+        abs(result.integral - result.valid_fraction)
+        > INTEGRAL_SIGMAS * result.valid_stderr + INTEGRAL_SLACK
+    )
 
 
 def test_mutant_ggx_jacobian_fails(lab):
@@ -379,8 +412,10 @@ def test_mutant_other_versions_row_convention_fails(lab):
     run = RUNS["environment"]
     wrong = 1 - int(compat.osl_texture_rows_bottom_up())
     rng = np.random.default_rng(run.seed)
-    rand = {"rand_u": chi2.uniform(rng, (SIZE, SIZE, 3)),
-            "rand_w": chi2.uniform(rng, (SIZE, SIZE, 3))}
+    rand = {
+        "rand_u": chi2.uniform(rng, (SIZE, SIZE, 3)),
+        "rand_w": chi2.uniform(rng, (SIZE, SIZE, 3)),
+    }
     dirs = lab.probe.render("env_sample", run, tex_bottom_up=wrong, **rand)
     pdf = lab.probe.render("env_pdf", run, tex_bottom_up=wrong, dir_in=lab.eval_dirs)[..., 0]
     observed = chi2.histogram(dirs, np.any(dirs != 0.0, axis=-1))

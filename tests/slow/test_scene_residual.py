@@ -25,9 +25,9 @@ from addon.jobs.scene_job import read_material_index, save_layers
 
 SMITH = "smith_ggx_correlated"
 OTHER_G = ("cook_torrance", "unity_smith_joint")
-SAMPLES = 16                    # the comparisons are per sample: few will do
+SAMPLES = 16  # the comparisons are per sample: few will do
 SPHERES = {"metal": (demo_scene.METAL, 1), "orange": (demo_scene.ORANGE, 2)}  # pass index
-OTHERS = 3                      # the pass index of the other objects' materials
+OTHERS = 3  # the pass index of the other objects' materials
 
 
 def read_layers(path) -> dict:
@@ -39,8 +39,9 @@ def read_layers(path) -> dict:
     try:
         while inp.seek_subimage(part, 0):
             spec = inp.spec()
-            px = np.asarray(inp.read_image(part, 0, 0, spec.nchannels, OIIO.FLOAT),
-                            dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+            px = np.asarray(
+                inp.read_image(part, 0, 0, spec.nchannels, OIIO.FLOAT), dtype=np.float32
+            ).reshape(spec.height, spec.width, spec.nchannels)
             for c, name in enumerate(spec.channelnames):
                 channels[name] = px[..., c]
             part += 1
@@ -60,10 +61,12 @@ def layer_rgb(channels: dict, layer: str):
 def render_layers(scene, out, path_traced, samples=SAMPLES, pixel_centres=False) -> dict:
     """Render the full view (exact path tracing, seed 0) and save the Render Result whole as
     a multilayer EXR; returns its channels."""
-    renderer.configure(scene, "osl", "full", samples, pixel_centres=pixel_centres,
-                       path_traced=path_traced)
-    renderer.render(scene, out, {"width": scene.render.resolution_x,
-                                 "height": scene.render.resolution_y})
+    renderer.configure(
+        scene, "osl", "full", samples, pixel_centres=pixel_centres, path_traced=path_traced
+    )
+    renderer.render(
+        scene, out, {"width": scene.render.resolution_x, "height": scene.render.resolution_y}
+    )
     save_layers(scene, bpy.data.images["Render Result"], out / "layers.exr")
     return read_layers(out / "layers.exr")
 
@@ -80,10 +83,12 @@ def show_residual(mat, node):
     def undo():
         nt.links.new(model_node.shader_output(node), out.inputs["Surface"])
         nt.nodes.remove(emit)
+
     return undo
 
 
 # --- The render pass ----------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def residual_pass(tmp_path_factory):
@@ -92,17 +97,25 @@ def residual_pass(tmp_path_factory):
     adds it; the surface shows the residual as an emission, so that one render at the pixel
     centres holds both the shader's output value (Combined) and the pass."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    s = MatrixSettings(rows=1, cols=1, width=32, height=32, albedo=(1.0, 1.0, 1.0),
-                       metallic=1.0, sun_strength=0.0, mutual_shadows=False,
-                       model=ModelOptions(light_transport="scene", g_model="cook_torrance",
-                                          env_samples=64))
+    s = MatrixSettings(
+        rows=1,
+        cols=1,
+        width=32,
+        height=32,
+        albedo=(1.0, 1.0, 1.0),
+        metallic=1.0,
+        sun_strength=0.0,
+        mutual_shadows=False,
+        model=ModelOptions(light_transport="scene", g_model="cook_torrance", env_samples=64),
+    )
     scene = bpy.context.scene
     desc = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
     node = model_node.find(mat)
-    assert any(link.to_node.bl_idname == "ShaderNodeOutputAOV" and
-               link.to_node.aov_name == OSL_RESIDUAL
-               for link in node.outputs[OSL_RESIDUAL].links), "no AOV Output for the pass"
+    assert any(
+        link.to_node.bl_idname == "ShaderNodeOutputAOV" and link.to_node.aov_name == OSL_RESIDUAL
+        for link in node.outputs[OSL_RESIDUAL].links
+    ), "no AOV Output for the pass"
     light_sync.add_residual_pass(scene)
     show_residual(mat, node)
     out = tmp_path_factory.mktemp("residual-pass")
@@ -124,21 +137,28 @@ def test_the_residual_pass_is_in_the_render_result(residual_pass):
     assert (shown[mask] > 0).all() and shown[mask].max() <= 2.0
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "Cycles' OSL backend writes no AOV Output node (OutputAOVNode::compile(OSLCompiler&) is "
-    "empty), and the OSL shader renders only with OSL on: the residual_albedo pass that "
-    "model_node.connect_residual and light_sync.add_residual_pass set up is all zeros"))
+@pytest.mark.xfail(
+    strict=True,
+    reason=(
+        "Cycles' OSL backend writes no AOV Output node (OutputAOVNode::compile(OSLCompiler&) is "
+        "empty), and the OSL shader renders only with OSL on: the residual_albedo pass that "
+        "model_node.connect_residual and light_sync.add_residual_pass set up is all zeros"
+    ),
+)
 def test_the_residual_pass_holds_the_shaders_residual(residual_pass):
     """The pass, read from the render result, is the shader's residual_albedo output at the
     same shading points (which test_scene_transport's quadrature test holds to the
     quadrature of |f_G - f_Smith| (n.l))."""
     channels, mask = residual_pass
     aov, shown = layer_rgb(channels, OSL_RESIDUAL), layer_rgb(channels, "Combined")
-    assert np.allclose(aov[mask], shown[mask], rtol=1e-5, atol=1e-7), \
-        (float(aov[mask].max()), float(shown[mask].mean()))
+    assert np.allclose(aov[mask], shown[mask], rtol=1e-5, atol=1e-7), (
+        float(aov[mask].max()),
+        float(shown[mask].mean()),
+    )
 
 
 # --- A real scene -------------------------------------------------------------------------
+
 
 def sphere_masks(scene, spheres, index) -> dict:
     """Each sphere's pixels: inside its conservative disc (demo_scene.sphere_mask) where it
@@ -152,7 +172,7 @@ def sphere_masks(scene, spheres, index) -> dict:
         own = np.ones_like(index, dtype=bool)
         for dy in range(5):
             for dx in range(5):
-                own &= pad[dy:dy + h, dx:dx + w] == k
+                own &= pad[dy : dy + h, dx : dx + w] == k
         masks[name] = own & demo_scene.sphere_mask(scene, obj, index.shape)
     return masks
 
@@ -171,15 +191,15 @@ def real_scene(request, tmp_path_factory):
     nodes = {}
     for name, obj in spheres.items():
         values, index = SPHERES[name]
-        mat = materials.model_material(name, "osl", ModelOptions(light_transport="scene",
-                                                                 diffuse_model="lambert"),
-                                       **values)
+        mat = materials.model_material(
+            name, "osl", ModelOptions(light_transport="scene", diffuse_model="lambert"), **values
+        )
         mat.pass_index = index
         demo_scene.set_material(obj, mat)
         light_sync.sync_material(mat, scene)
         obj.visible_diffuse = obj.visible_glossy = obj.visible_transmission = False
         nodes[name] = (mat, model_node.find(mat))
-    for mat in bpy.data.materials:            # the floor, the cube and the panel
+    for mat in bpy.data.materials:  # the floor, the cube and the panel
         if model_node.find(mat) is None:
             mat.pass_index = OTHERS
     bpy.context.view_layer.use_pass_material_index = True
@@ -187,16 +207,22 @@ def real_scene(request, tmp_path_factory):
 
     def set_all(transport, g_model):
         for _mat, node in nodes.values():
-            model_node.set_options(node, ModelOptions(
-                light_transport=transport, g_model=g_model, diffuse_model="lambert",
-                env_visibility=True, shadow_rays=True))
+            model_node.set_options(
+                node,
+                ModelOptions(
+                    light_transport=transport,
+                    g_model=g_model,
+                    diffuse_model="lambert",
+                    env_visibility=True,
+                    shadow_rays=True,
+                ),
+            )
 
     images, residual = {}, {}
     for transport in ("scene", "lab"):
         for g_model in (SMITH,) + OTHER_G:
             set_all(transport, g_model)
-            channels = render_layers(scene, root / f"{transport}-{g_model}",
-                                     transport == "scene")
+            channels = render_layers(scene, root / f"{transport}-{g_model}", transport == "scene")
             images[transport, g_model] = layer_rgb(channels, "Combined")
             if (transport, g_model) == ("scene", SMITH):
                 index = read_material_index(root / f"{transport}-{g_model}" / "layers.exr")
@@ -212,7 +238,7 @@ def real_scene(request, tmp_path_factory):
     # (the emissive panel, Emission 6 x (1, 0.9, 0.7); the floor and the cube, lit by the
     # area light, the world and the panel, as the camera sees them in the Smith render; the
     # other sphere does not reach it), doubled for the directions the camera does not see.
-    others = index == OTHERS                  # the world's pixels have index 0
+    others = index == OTHERS  # the world's pixels have index 0
     assert others.sum() > 1000
     brightest = images["scene", SMITH][others]
     panel = 6.0 * np.array([1.0, 0.9, 0.7])
@@ -240,8 +266,7 @@ ROUNDING = 2e-5
 
 
 @pytest.mark.parametrize("g_model", OTHER_G)
-def test_the_difference_from_smith_is_the_models_and_within_the_residual(real_scene,
-                                                                         g_model):
+def test_the_difference_from_smith_is_the_models_and_within_the_residual(real_scene, g_model):
     """Per sphere pixel, the scene render with this G differs from the Smith render by the
     lab's difference (the model's own integration of the world and the lights, the other
     objects' occlusion traced) to float rounding; what remains, the difference G - Smith
@@ -257,16 +282,22 @@ def test_the_difference_from_smith_is_the_models_and_within_the_residual(real_sc
     for name, mask in masks.items():
         tol = ROUNDING * (1 + np.abs(images["scene", SMITH][mask]))
         err = np.abs(e[mask])
-        assert (err <= tol).all(), (world, name, float(err.max()), float(np.abs(
-            d_lab[mask]).mean()))
+        assert (err <= tol).all(), (
+            world,
+            name,
+            float(err.max()),
+            float(np.abs(d_lab[mask]).mean()),
+        )
         bound = residual[g_model][mask] * l_max_other + tol
         assert (err <= bound).all(), (world, name)
         differs = np.abs(d_scene[mask]) > 10 * tol
         assert differs.any(), (world, name, float(np.abs(d_scene[mask]).max()))
         assert (residual[g_model][mask][differs] > 0).all()
-        print(f"{world} {name} {g_model}: |scene - Smith| mean {np.abs(d_scene[mask]).mean():.2e}"
-              f" max {np.abs(d_scene[mask]).max():.2e}; |E| max {err.max():.2e}; residual mean "
-              f"{residual[g_model][mask].mean():.2e}; L_max_other {l_max_other.max():.2f}")
+        print(
+            f"{world} {name} {g_model}: |scene - Smith| mean {np.abs(d_scene[mask]).mean():.2e}"
+            f" max {np.abs(d_scene[mask]).max():.2e}; |E| max {err.max():.2e}; residual mean "
+            f"{residual[g_model][mask].mean():.2e}; L_max_other {l_max_other.max():.2f}"
+        )
 
 
 @pytest.mark.parametrize("g_model", OTHER_G)
@@ -286,5 +317,7 @@ def test_the_residual_bound_rejects_the_lab(real_scene, g_model):
         outside = (mutated[mask] > bound).any(axis=-1)
         assert outside.mean() > 0.5, (world, name, float(outside.mean()))
         assert (d_lab[mask] > 10 * tol).any(), (world, name)
-        print(f"{world} {name} {g_model}: lab outside the bound on {outside.mean():.0%} of "
-              f"the sphere; |lab G - lab Smith| max {d_lab[mask].max():.2e}")
+        print(
+            f"{world} {name} {g_model}: lab outside the bound on {outside.mean():.0%} of "
+            f"the sphere; |lab G - lab Smith| max {d_lab[mask].max():.2e}"
+        )

@@ -34,14 +34,17 @@ def soft_sky(tmp_path_factory):
     """A smooth sky without a sun spike (so 256 samples converge): a blue-to-white gradient
     above, a dark brown ground, and a broad warm lobe, 256 x 128."""
     h, w = 128, 256
-    t = (np.arange(h) + 0.5) / h                      # 0 at the top row (+Z)
+    t = (np.arange(h) + 0.5) / h  # 0 at the top row (+Z)
     s = (np.arange(w) + 0.5) / w
     elev = (0.5 - t) * math.pi
     phi = (0.5 - s) * 2 * math.pi
     E, P = np.meshgrid(elev, phi, indexing="ij")
     d = np.stack([np.cos(E) * np.cos(P), np.cos(E) * np.sin(P), np.sin(E)], axis=-1)
-    sky = np.where(d[..., 2:3] > 0, (0.35 + 0.65 * d[..., 2:3]) * np.array([0.55, 0.75, 1.0])
-                   + 0.3, np.array([0.12, 0.08, 0.05]))
+    sky = np.where(
+        d[..., 2:3] > 0,
+        (0.35 + 0.65 * d[..., 2:3]) * np.array([0.55, 0.75, 1.0]) + 0.3,
+        np.array([0.12, 0.08, 0.05]),
+    )
     lobe = np.clip(d @ np.array([0.6, -0.6, 0.52]) / 1.0, 0, 1) ** 8 * 6.0
     img = (sky + lobe[..., None] * np.array([1.0, 0.8, 0.55])).astype(np.float32)
     path = tmp_path_factory.mktemp("sky") / "soft_sky.exr"
@@ -55,8 +58,17 @@ def key_sun():
     highlight on the mirror is a sub-pixel spike that neither estimate converges on in a
     test's samples, a sized one is sampled (and hit by BRDF samples) by both."""
     from addon.core.lights import parse_light
-    return parse_light({"type": "SUN", "name": "Key", "energy": 3.0,
-                        "rotation_euler": [0.7916, 0.0, -0.686], "angle": 0.4}, "test")
+
+    return parse_light(
+        {
+            "type": "SUN",
+            "name": "Key",
+            "energy": 3.0,
+            "rotation_euler": [0.7916, 0.0, -0.686],
+            "angle": 0.4,
+        },
+        "test",
+    )
 
 
 @pytest.fixture(scope="module")
@@ -65,9 +77,16 @@ def matrix(soft_sky):
     key Sun, built once (the OSL shader compiles once): spheres hidden from each other's
     rays, no mutual shadows (so the world and the Sun are all they see)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    s = MatrixSettings(rows=3, cols=2, width=32, height=48, hdri=soft_sky,
-                       lights=(key_sun(),), mutual_shadows=False,
-                       model=ModelOptions(light_transport="scene"))
+    s = MatrixSettings(
+        rows=3,
+        cols=2,
+        width=32,
+        height=48,
+        hdri=soft_sky,
+        lights=(key_sun(),),
+        mutual_shadows=False,
+        model=ModelOptions(light_transport="scene"),
+    )
     scene = bpy.context.scene
     scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
@@ -99,15 +118,21 @@ def difference(tmp_path, a, b):
     worst = max(c["ciede2000_mean"] for c in result["cells"])
     ia, _, scene = compare.load_render(a)
     ib, _, _ = compare.load_render(b)
-    ratios = [float(ib[m].mean() / ia[m].mean()) for m in
-              (compare.cell_mask(ia.shape[:2], c, 0.9) for c in scene["cells"])]
+    ratios = [
+        float(ib[m].mean() / ia[m].mean())
+        for m in (compare.cell_mask(ia.shape[:2], c, 0.9) for c in scene["cells"])
+    ]
     return worst, ratios
 
 
 # Every G x diffuse x energy combination: the exact closures (Smith G, no compensation) and
 # the correction for the others.
-COMBOS = [(g, d, e) for g in ("smith_ggx_correlated", "cook_torrance", "unity_smith_joint")
-          for d in ("lambert", "disney") for e in ("none", "compensated")]
+COMBOS = [
+    (g, d, e)
+    for g in ("smith_ggx_correlated", "cook_torrance", "unity_smith_joint")
+    for d in ("lambert", "disney")
+    for e in ("none", "compensated")
+]
 CORRECTED = [c for c in COMBOS if c[0] != "smith_ggx_correlated" or c[2] != "none"]
 
 
@@ -121,31 +146,43 @@ def converged(matrix, tmp_path_factory):
     def get(transport, g_model, diffuse_model, energy):
         key = (transport, g_model, diffuse_model, energy)
         if key not in done:
-            done[key] = render_transport(matrix, root / "-".join(key), transport, CONVERGED,
-                                         g_model=g_model, diffuse_model=diffuse_model,
-                                         energy=energy, env_samples=4)
+            done[key] = render_transport(
+                matrix,
+                root / "-".join(key),
+                transport,
+                CONVERGED,
+                g_model=g_model,
+                diffuse_model=diffuse_model,
+                energy=energy,
+                env_samples=4,
+            )
         return done[key]
+
     return get
 
 
 @pytest.mark.parametrize("g_model,diffuse_model,energy", COMBOS)
-def test_converged_scene_equals_lab_under_the_world_and_a_sun(tmp_path, converged, g_model,
-                                                              diffuse_model, energy):
+def test_converged_scene_equals_lab_under_the_world_and_a_sun(
+    tmp_path, converged, g_model, diffuse_model, energy
+):
     """With only the world and the key Sun to see, the path-traced closures plus the
     correction equal the lab's integration at converged samples: every sphere within mean
     CIEDE2000 0.5 and its mean radiance within 1.5%, for every G, diffuse and energy."""
     combo = (g_model, diffuse_model, energy)
     lab, scene = converged("lab", *combo), converged("scene", *combo)
     worst, ratios = difference(tmp_path, lab, scene)
-    print(f"scene vs lab {combo}: worst mean CIEDE2000 {worst:.3f}, radiance ratios "
-          + " ".join(f"{r:.4f}" for r in ratios))
+    print(
+        f"scene vs lab {combo}: worst mean CIEDE2000 {worst:.3f}, radiance ratios "
+        + " ".join(f"{r:.4f}" for r in ratios)
+    )
     assert worst <= BOUND_DE, (worst, ratios)
     assert all(abs(r - 1) < 0.015 for r in ratios), ratios
 
 
 @pytest.mark.parametrize("g_model,diffuse_model,energy", CORRECTED)
-def test_without_the_correction_scene_would_fail_the_bound(tmp_path, converged, g_model,
-                                                           diffuse_model, energy):
+def test_without_the_correction_scene_would_fail_the_bound(
+    tmp_path, converged, g_model, diffuse_model, energy
+):
     """The bound has teeth: without the correction the scene transport would be the exact
     closures alone (Smith G, no compensation), which the lab renders as G = Smith, energy
     none (the exact combinations above). Against the lab's render of this combination that
@@ -154,8 +191,10 @@ def test_without_the_correction_scene_would_fail_the_bound(tmp_path, converged, 
     combo = (g_model, diffuse_model, energy)
     closures_alone = converged("scene", "smith_ggx_correlated", diffuse_model, "none")
     worst, ratios = difference(tmp_path, converged("lab", *combo), closures_alone)
-    print(f"closures alone vs lab {combo}: worst mean CIEDE2000 {worst:.3f}, radiance "
-          "ratios " + " ".join(f"{r:.4f}" for r in ratios))
+    print(
+        f"closures alone vs lab {combo}: worst mean CIEDE2000 {worst:.3f}, radiance "
+        "ratios " + " ".join(f"{r:.4f}" for r in ratios)
+    )
     assert worst > 2 * BOUND_DE or any(abs(r - 1) > 0.03 for r in ratios), (worst, ratios)
 
 
@@ -168,22 +207,27 @@ def test_term_views_stay_lab_in_the_scene_transport(tmp_path, matrix):
     diffuse and energy that the correction carries."""
     model = dict(g_model="cook_torrance", diffuse_model="disney", energy="compensated")
     for view in TERM_VIEWS_CHECKED:
-        lab = compare.read_image(render_transport(matrix, tmp_path / f"lab-{view}", "lab", 1,
-                                                  view=view, **model) / "render.exr")
-        scene = compare.read_image(render_transport(matrix, tmp_path / f"scene-{view}",
-                                                    "scene", 1, view=view, **model)
-                                   / "render.exr")
+        lab = compare.read_image(
+            render_transport(matrix, tmp_path / f"lab-{view}", "lab", 1, view=view, **model)
+            / "render.exr"
+        )
+        scene = compare.read_image(
+            render_transport(matrix, tmp_path / f"scene-{view}", "scene", 1, view=view, **model)
+            / "render.exr"
+        )
         assert np.isfinite(lab).all() and lab.max() > 0, view
         assert np.array_equal(scene, lab), (view, float(np.abs(scene - lab).max()))
 
 
 # --- A real scene: the material beside other objects -------------------------------------
 
+
 def render_scene(scene, out, shader, samples=128):
     """The scene's full view, path traced (exact settings); (linear EXR, display PNG)."""
     renderer.configure(scene, shader, "full", samples, path_traced=True)
-    renderer.render(scene, out, {"width": scene.render.resolution_x,
-                                 "height": scene.render.resolution_y})
+    renderer.render(
+        scene, out, {"width": scene.render.resolution_x, "height": scene.render.resolution_y}
+    )
     return compare.read_image(out / "render.exr"), compare.read_image(out / "render.png")
 
 
@@ -205,13 +249,19 @@ def test_a_mirror_sphere_in_a_real_scene_equals_principled(tmp_path, world):
     an emissive panel, under an HDRI and under a Sky Texture; and it shows its neighbours,
     which the lab transport does not (the red cube's light: R - G over the sphere)."""
     from addon.blender import demo_scene, light_sync
+
     scene, sphere, other = demo_scene.build(world)
     demo_scene.set_material(other, demo_scene.principled_for(demo_scene.ORANGE, "Orange"))
     demo_scene.set_material(sphere, demo_scene.principled_for(demo_scene.METAL))
     ref_exr, ref_png = render_scene(scene, tmp_path / "principled", "principled")
     mat = materials.model_material(
-        "CT", "osl", ModelOptions(light_transport="scene", g_model="smith_ggx_correlated",
-                                  diffuse_model="lambert"), **demo_scene.METAL)
+        "CT",
+        "osl",
+        ModelOptions(
+            light_transport="scene", g_model="smith_ggx_correlated", diffuse_model="lambert"
+        ),
+        **demo_scene.METAL,
+    )
     demo_scene.set_material(sphere, mat)
     light_sync.sync_material(mat, scene)
     exr, png = render_scene(scene, tmp_path / "scene", "osl")
@@ -231,6 +281,7 @@ def test_a_mirror_sphere_in_a_real_scene_equals_principled(tmp_path, world):
 
 
 # --- The residual albedo ------------------------------------------------------------------
+
 
 def residual_quadrature(g_model: str, mu: np.ndarray, pr: float, n=400) -> np.ndarray:
     """integral of |f_G - f_Smith| (n.l) dl with F = 1, for each n.v in ``mu``, by a midpoint
@@ -253,10 +304,15 @@ def residual_quadrature(g_model: str, mu: np.ndarray, pr: float, n=400) -> np.nd
         d = a * a / (np.pi * (nh * nh * (a * a - 1) + 1) ** 2)
         if g_model == "cook_torrance":
             g = np.minimum(1, np.minimum(2 * nh * m / vh_, 2 * nh * nl / vh_))
-        else:               # Unity's SmithJointGGXVisibilityTerm as a G
+        else:  # Unity's SmithJointGGXVisibilityTerm as a G
             g = 4 * nl * m * 0.5 / (nl * (m * (1 - a) + a) + m * (nl * (1 - a) + a) + 1e-5)
         a2 = a * a
-        smith = 2 * nl * m / (nl * np.sqrt(m * m * (1 - a2) + a2) + m * np.sqrt(nl * nl * (1 - a2) + a2))
+        smith = (
+            2
+            * nl
+            * m
+            / (nl * np.sqrt(m * m * (1 - a2) + a2) + m * np.sqrt(nl * nl * (1 - a2) + a2))
+        )
         f = np.abs(g - smith) * d / (4 * nl * m)
         pdf = d * nh / (4 * vh_)
         out.append(float(np.where(ok, f * nl / pdf, 0).mean()))
@@ -270,10 +326,17 @@ def test_the_residual_albedo_pass_is_the_quadrature(tmp_path, g_model):
     |f_G - f_Smith| (n.l) within 3% on average in every band of n.v."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     smooth = 0.5
-    s = MatrixSettings(rows=1, cols=1, width=96, height=96, albedo=(1.0, 1.0, 1.0),
-                       metallic=1.0, sun_strength=0.0, mutual_shadows=False,
-                       model=ModelOptions(light_transport="scene", g_model=g_model,
-                                          env_samples=256))
+    s = MatrixSettings(
+        rows=1,
+        cols=1,
+        width=96,
+        height=96,
+        albedo=(1.0, 1.0, 1.0),
+        metallic=1.0,
+        sun_strength=0.0,
+        mutual_shadows=False,
+        model=ModelOptions(light_transport="scene", g_model=g_model, env_samples=256),
+    )
     scene = bpy.context.scene
     desc = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
@@ -292,7 +355,7 @@ def test_the_residual_albedo_pass_is_the_quadrature(tmp_path, g_model):
     dx = (xx + 0.5 - cell["center_px"][0]) / cell["radius_px"]
     dz = (yy + 0.5 - cell["center_px"][1]) / cell["radius_px"]
     r2 = dx * dx + dz * dz
-    inside = r2 < 0.96                      # n.v >= 0.2
+    inside = r2 < 0.96  # n.v >= 0.2
     mu = np.sqrt(np.clip(1 - r2, 0, 1))
     assert np.isfinite(img).all() and (img[inside] >= 0).all()
     assert np.allclose(img[inside][:, 0], img[inside][:, 2], rtol=1e-5, atol=1e-7)  # F = 1
@@ -311,19 +374,36 @@ def test_the_correction_is_exact_for_the_lights_with_shadow_rays(tmp_path, soft_
     Disney diffuse, compensated energy: scene equals lab, mean within 1.5%."""
     from helpers import ROOT
     from addon.core.lights import read_lights
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    extra = {"sun_strength": 3.0} if lights == "key_sun" else \
-        {"lights": tuple(read_lights(ROOT / "docs" / "lights" / "mixed.json"))}
-    s = MatrixSettings(rows=1, cols=1, width=64, height=64, hdri=soft_sky, hdri_strength=0.3,
-                       mutual_shadows=True, metallic=0.5,
-                       model=ModelOptions(light_transport="scene"), **extra)
+    extra = (
+        {"sun_strength": 3.0}
+        if lights == "key_sun"
+        else {"lights": tuple(read_lights(ROOT / "docs" / "lights" / "mixed.json"))}
+    )
+    s = MatrixSettings(
+        rows=1,
+        cols=1,
+        width=64,
+        height=64,
+        hdri=soft_sky,
+        hdri_strength=0.3,
+        mutual_shadows=True,
+        metallic=0.5,
+        model=ModelOptions(light_transport="scene"),
+        **extra,
+    )
     scene = bpy.context.scene
     scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
-    model = dict(g_model="cook_torrance", diffuse_model="disney", energy="compensated",
-                 env_samples=4)
+    model = dict(
+        g_model="cook_torrance", diffuse_model="disney", energy="compensated", env_samples=4
+    )
     assert s.model_options(**model).shadow_rays
     matrix = (s, scene, node)
-    assert_same(tmp_path, render_transport(matrix, tmp_path / "lab", "lab", **model),
-                render_transport(matrix, tmp_path / "scene", "scene", **model),
-                BOUND_DE_NOISY)
+    assert_same(
+        tmp_path,
+        render_transport(matrix, tmp_path / "lab", "lab", **model),
+        render_transport(matrix, tmp_path / "scene", "scene", **model),
+        BOUND_DE_NOISY,
+    )

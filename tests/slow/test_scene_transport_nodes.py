@@ -26,13 +26,23 @@ FULL = VIEWS.index("full")
 # --- Structure ------------------------------------------------------------------------------
 
 _MATH = {
-    "ADD": lambda a, b: a + b, "SUBTRACT": lambda a, b: a - b,
-    "MULTIPLY": lambda a, b: a * b, "DIVIDE": lambda a, b: a / b if b else 0.0,
-    "MAXIMUM": max, "MINIMUM": min, "SQRT": lambda a, b: math.sqrt(a) if a > 0 else 0.0,
-    "GREATER_THAN": lambda a, b: float(a > b), "LESS_THAN": lambda a, b: float(a < b),
+    "ADD": lambda a, b: a + b,
+    "SUBTRACT": lambda a, b: a - b,
+    "MULTIPLY": lambda a, b: a * b,
+    "DIVIDE": lambda a, b: a / b if b else 0.0,
+    "MAXIMUM": max,
+    "MINIMUM": min,
+    "SQRT": lambda a, b: math.sqrt(a) if a > 0 else 0.0,
+    "GREATER_THAN": lambda a, b: float(a > b),
+    "LESS_THAN": lambda a, b: float(a < b),
 }
-_VEC = {"ADD": np.add, "SUBTRACT": np.subtract, "MULTIPLY": np.multiply,
-        "MINIMUM": np.minimum, "MAXIMUM": np.maximum}
+_VEC = {
+    "ADD": np.add,
+    "SUBTRACT": np.subtract,
+    "MULTIPLY": np.multiply,
+    "MINIMUM": np.minimum,
+    "MAXIMUM": np.maximum,
+}
 
 
 def _input_value(sock, inputs):
@@ -70,6 +80,7 @@ def _source(sock):
 
 def _group_inputs(**values):
     from addon.core.model import GROUP_INPUTS
+
     out = {}
     for i in GROUP_INPUTS:
         v = values.get(i.group, i.default)
@@ -81,11 +92,14 @@ def _group_inputs(**values):
 def group():
     import bpy
     from addon.blender import node_group
+
     name = "ctlab scene transport test"
     yield node_group.build_group(name)
-    for key in (name + " Light", name):          # unless a later reset removed them
+    for key in (name + " Light", name):  # unless a later reset removed them
         if key in bpy.data.node_groups:
             bpy.data.node_groups.remove(bpy.data.node_groups[key])
+
+
 def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view(group):
     out = next(n for n in group.nodes if n.bl_idname == "NodeGroupOutput")
     select = _source(out.inputs["Emission"]).node
@@ -93,8 +107,10 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
     lab, scene = (_source(select.inputs[k]).node for k in (1, 2))
     for transport in (0, 1):
         for view in range(len(VIEWS)):
-            fac = _evaluate(_source(select.inputs["Fac"]), _group_inputs(**{
-                "Light Transport Scene": transport, "View": view}))
+            fac = _evaluate(
+                _source(select.inputs["Fac"]),
+                _group_inputs(**{"Light Transport Scene": transport, "View": view}),
+            )
             assert fac == float(transport == 1 and view == FULL), (transport, VIEWS[view])
 
     def upstream(node, found):
@@ -103,8 +119,9 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
             if s.is_linked and s.type == 'SHADER':
                 upstream(s.links[0].from_node, found)
         return found
+
     bsdfs = ("ShaderNodeBsdfMetallic", "ShaderNodeBsdfDiffuse")
-    assert not [n for n in upstream(lab, []) if n.bl_idname in bsdfs]   # the lab only emits
+    assert not [n for n in upstream(lab, []) if n.bl_idname in bsdfs]  # the lab only emits
     # the scene side: the closures plus the correction behind a Mix Shader of factor
     # `correct` (its first input empty), the only emission there
     assert scene.bl_idname == "ShaderNodeAddShader"
@@ -113,29 +130,39 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
         closures, gate = gate, closures
     assert gate.bl_idname == "ShaderNodeMixShader" and not gate.inputs[1].is_linked
     scene_nodes = upstream(closures, [])
-    assert not [n for n in scene_nodes if n.bl_idname in ("ShaderNodeEmission",
-                                                          "ShaderNodeGroup")]
+    assert not [n for n in scene_nodes if n.bl_idname in ("ShaderNodeEmission", "ShaderNodeGroup")]
     correction = upstream(_source(gate.inputs[2]).node, [])
-    assert not [n for n in correction if n.bl_idname in bsdfs]   # the correction only emits
+    assert not [n for n in correction if n.bl_idname in bsdfs]  # the correction only emits
     for g_model in range(3):
         for lambert in (0, 1):
             for energy in (0, 1):
-                fac = _evaluate(_source(gate.inputs["Fac"]), _group_inputs(**{
-                    "G Model": g_model, "Diffuse Lambert": lambert,
-                    "Energy Compensated": energy}))
+                fac = _evaluate(
+                    _source(gate.inputs["Fac"]),
+                    _group_inputs(
+                        **{
+                            "G Model": g_model,
+                            "Diffuse Lambert": lambert,
+                            "Energy Compensated": energy,
+                        }
+                    ),
+                )
                 # 0 exactly for the closures' own switches (Smith's G, Lambert; Multiscatter
                 # GGX is the compensated Smith lobe), so Cycles folds the correction away
-                assert fac == float(not (g_model == 1 and lambert == 1)), \
-                    (g_model, lambert, energy)
+                assert fac == float(not (g_model == 1 and lambert == 1)), (g_model, lambert, energy)
     metals = [n for n in scene_nodes if n.bl_idname == "ShaderNodeBsdfMetallic"]
     diffuse = [n for n in scene_nodes if n.bl_idname == "ShaderNodeBsdfDiffuse"]
     assert len(metals) == 2 and len(diffuse) == 1
     # GGX, or Multiscatter GGX exactly where Energy Compensated is 1, by a 0-or-1 Mix Shader
-    chooser = next(n for n in scene_nodes if n.bl_idname == "ShaderNodeMixShader"
-                   and {_source(n.inputs[k]).node for k in (1, 2)} == set(metals))
+    chooser = next(
+        n
+        for n in scene_nodes
+        if n.bl_idname == "ShaderNodeMixShader"
+        and {_source(n.inputs[k]).node for k in (1, 2)} == set(metals)
+    )
     for energy in (0, 1):
-        fac = _evaluate(_source(chooser.inputs["Fac"]),
-                        _group_inputs(**{"Energy Compensated": energy}))
+        fac = _evaluate(
+            _source(chooser.inputs["Fac"]), _group_inputs(**{"Energy Compensated": energy})
+        )
         assert fac == energy
     assert _source(chooser.inputs[1]).node.distribution == 'GGX'
     assert _source(chooser.inputs[2]).node.distribution == 'MULTI_GGX'
@@ -147,36 +174,51 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
         assert not metal.inputs["Edge Tint"].is_linked
         assert not metal.inputs["Anisotropy"].is_linked
         assert metal.inputs["Anisotropy"].default_value == 0
-        if "Thin Film Thickness" in metal.inputs:            # 5.x
+        if "Thin Film Thickness" in metal.inputs:  # 5.x
             assert metal.inputs["Thin Film Thickness"].default_value == 0
         # the shading normal the lab uses (the group's n: Normal input or geometry's)
         assert _source(metal.inputs["Normal"]).node.label == "n"
     assert _source(diffuse.inputs["Normal"]).node.label == "n"
     assert not diffuse.inputs["Roughness"].is_linked
-    assert diffuse.inputs["Roughness"].default_value == 0          # Lambert
+    assert diffuse.inputs["Roughness"].default_value == 0  # Lambert
 
     # the colours and the roughness, from the model's formulas (UnityStandardUtils):
     # specColor = lerp(0.04, albedo, m), diffColor = albedo 0.96 (1 - m), and the node squares
     # its Roughness: Roughness = sqrt(alpha) = max(1 - smoothness, sqrt(0.002))
-    for albedo, m, s in (((0.9, 0.5, 0.2), 0.0, 0.5), ((0.3, 0.7, 1.0), 1.0, 0.9),
-                         ((0.5, 0.25, 0.125), 0.3, 1.0), ((1.4, -0.2, 0.5), 0.6, 0.0)):
+    for albedo, m, s in (
+        ((0.9, 0.5, 0.2), 0.0, 0.5),
+        ((0.3, 0.7, 1.0), 1.0, 0.9),
+        ((0.5, 0.25, 0.125), 0.3, 1.0),
+        ((1.4, -0.2, 0.5), 0.6, 0.0),
+    ):
         inputs = _group_inputs(Albedo=albedo, Metallic=m, Smoothness=s)
         base = np.clip(albedo, 0, 1)
         for metal in metals:
-            np.testing.assert_allclose(_evaluate(_source(metal.inputs["Base Color"]), inputs),
-                                       0.04 * (1 - m) + base * m, rtol=1e-6, atol=1e-7)
-            assert _evaluate(_source(metal.inputs["Roughness"]), inputs) == \
-                pytest.approx(max(1 - s, math.sqrt(0.002)), rel=1e-6)
-        np.testing.assert_allclose(_evaluate(_source(diffuse.inputs["Color"]), inputs),
-                                   base * 0.96 * (1 - m), rtol=1e-6, atol=1e-7)
+            np.testing.assert_allclose(
+                _evaluate(_source(metal.inputs["Base Color"]), inputs),
+                0.04 * (1 - m) + base * m,
+                rtol=1e-6,
+                atol=1e-7,
+            )
+            assert _evaluate(_source(metal.inputs["Roughness"]), inputs) == pytest.approx(
+                max(1 - s, math.sqrt(0.002)), rel=1e-6
+            )
+        np.testing.assert_allclose(
+            _evaluate(_source(diffuse.inputs["Color"]), inputs),
+            base * 0.96 * (1 - m),
+            rtol=1e-6,
+            atol=1e-7,
+        )
 
 
 # --- A render where path tracing matters ----------------------------------------------------
 
 SIZE, SAMPLES = 64, 64
 # (albedo, metallic, smoothness): a copper-like metal and a blue dielectric
-SPHERES = (dict(albedo=(0.95, 0.64, 0.54), metallic=1.0, smoothness=0.6),
-           dict(albedo=(0.2, 0.35, 0.8), metallic=0.0, smoothness=0.45))
+SPHERES = (
+    dict(albedo=(0.95, 0.64, 0.54), metallic=1.0, smoothness=0.6),
+    dict(albedo=(0.2, 0.35, 0.8), metallic=0.0, smoothness=0.45),
+)
 LOCATIONS = ((-0.65, 0.0, 0.5), (0.75, -0.2, 0.5))
 CUBE = (0.1, 0.75, 0.4)
 
@@ -194,6 +236,7 @@ shader reference(color f0 = 0.04, color diffColor = 0, float alpha = 0.25,
 
 def _diffuse_material(name, colour):
     import bpy
+
     mat = bpy.data.materials.new(name)
     compat.use_nodes(mat)
     nt = mat.node_tree
@@ -207,6 +250,7 @@ def _diffuse_material(name, colour):
 
 def _emission_material(name, colour):
     import bpy
+
     mat = bpy.data.materials.new(name)
     compat.use_nodes(mat)
     nt = mat.node_tree
@@ -226,6 +270,7 @@ class Scene:
     def __init__(self):
         import bpy
         from addon.blender.paths import bundled_hdri
+
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = self.scene = bpy.context.scene
         w = self.world = bpy.data.worlds.new("forest")
@@ -246,8 +291,9 @@ class Scene:
         self.cube = bpy.context.active_object
         self.spheres = []
         for location in LOCATIONS:
-            bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=0.5,
-                                                 location=location)
+            bpy.ops.mesh.primitive_uv_sphere_add(
+                segments=48, ring_count=24, radius=0.5, location=location
+            )
             bpy.ops.object.shade_smooth()
             self.spheres.append(bpy.context.active_object)
         cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
@@ -263,18 +309,37 @@ class Scene:
         obj.data.materials.clear()
         obj.data.materials.append(mat)
 
-    def render(self, tmp, name, spheres, floor=None, cube=None, shader="nodes", seed=0,
-               world=True, samples=SAMPLES, pixel_centres=False):
+    def render(
+        self,
+        tmp,
+        name,
+        spheres,
+        floor=None,
+        cube=None,
+        shader="nodes",
+        seed=0,
+        world=True,
+        samples=SAMPLES,
+        pixel_centres=False,
+    ):
         """The linear image (float64, rows top-down as read_image gives them)."""
         from addon.blender import renderer
         from addon.core.compare import read_image
+
         for obj, mat in zip(self.spheres, spheres):
             self._set(obj, mat)
         self._set(self.floor, floor or self.grey)
         self._set(self.cube, cube or self.red)
         self.scene.world = self.world if world else None
-        renderer.configure(self.scene, shader, "full", samples, seed=seed, path_traced=True,
-                           pixel_centres=pixel_centres)
+        renderer.configure(
+            self.scene,
+            shader,
+            "full",
+            samples,
+            seed=seed,
+            path_traced=True,
+            pixel_centres=pixel_centres,
+        )
         image = renderer.render_result(tmp / "log.txt")
         path = tmp / f"{name}.exr"
         renderer.save_exr(self.scene, image, path)
@@ -284,10 +349,16 @@ class Scene:
         """The pixels whose centre sees sphere 0 or 1 (an emission render, one sample at each
         pixel centre, no world)."""
         black = _emission_material("id black", (0, 0, 0))
-        image = self.render(tmp, "masks", (_emission_material("id 0", (1, 0, 0)),
-                                           _emission_material("id 1", (0, 1, 0))),
-                            floor=black, cube=black, world=False, samples=1,
-                            pixel_centres=True)
+        image = self.render(
+            tmp,
+            "masks",
+            (_emission_material("id 0", (1, 0, 0)), _emission_material("id 1", (0, 1, 0))),
+            floor=black,
+            cube=black,
+            world=False,
+            samples=1,
+            pixel_centres=True,
+        )
         return [image[..., 0] > 0.5, image[..., 1] > 0.5]
 
 
@@ -296,8 +367,14 @@ def group_material(surface, name):
     exact switches: height-correlated Smith G, Lambert, no energy compensation."""
     from addon.blender import materials
     from addon.core.model import ModelOptions
-    options = ModelOptions(g_model="smith_ggx_correlated", diffuse_model="lambert",
-                           energy="none", light_transport="scene", ibl="split_sum")
+
+    options = ModelOptions(
+        g_model="smith_ggx_correlated",
+        diffuse_model="lambert",
+        energy="none",
+        light_transport="scene",
+        ibl="split_sum",
+    )
     return materials.model_material(name, impl="nodes", options=options, **surface)
 
 
@@ -305,6 +382,7 @@ def principled_metal(surface, name):
     """Principled BSDF, metallic 1: F82-tint Fresnel with its default white specular tint, i.e.
     Schlick's on Base Color; GGX with alpha = Roughness^2 = (1 - smoothness)^2."""
     import bpy
+
     assert surface["metallic"] == 1.0
     mat = bpy.data.materials.new(name)
     compat.use_nodes(mat)
@@ -324,6 +402,7 @@ def osl_reference(surface, name):
     """The OSL script above with the model's inputs: specColor, diffColor, alpha."""
     import bpy
     import cycles.osl
+
     mat = bpy.data.materials.new(name)
     compat.use_nodes(mat)
     nt = mat.node_tree
@@ -334,8 +413,9 @@ def osl_reference(surface, name):
     node.mode = 'INTERNAL'
     node.script = text
     errors = []
-    cycles.osl.update_script_node(node, lambda kind, msg: errors.append(msg)
-                                  if 'ERROR' in kind else None)
+    cycles.osl.update_script_node(
+        node, lambda kind, msg: errors.append(msg) if 'ERROR' in kind else None
+    )
     assert not errors and "f0" in node.inputs, errors
     albedo, m = np.array(surface["albedo"]), surface["metallic"]
     pr = 1.0 - surface["smoothness"]
@@ -353,10 +433,15 @@ def scene_renders(tmp, scene=None):
     group = tuple(group_material(s, f"group {k}") for k, s in enumerate(SPHERES))
     return scene, {
         "group": scene.render(tmp, "group", group),
-        "principled": scene.render(tmp, "principled", (
-            principled_metal(SPHERES[0], "principled metal"), group[1])),
-        "osl": scene.render(tmp, "osl", tuple(osl_reference(s, f"osl {k}")
-                                              for k, s in enumerate(SPHERES)), shader="osl"),
+        "principled": scene.render(
+            tmp, "principled", (principled_metal(SPHERES[0], "principled metal"), group[1])
+        ),
+        "osl": scene.render(
+            tmp,
+            "osl",
+            tuple(osl_reference(s, f"osl {k}") for k, s in enumerate(SPHERES)),
+            shader="osl",
+        ),
         # the group with a grey cube in place of the red one
         "grey cube": scene.render(tmp, "grey cube", group, cube=scene.grey),
     }
@@ -434,8 +519,12 @@ def test_the_group_sees_the_other_objects(renders):
 
 from test_scene_transport import soft_sky  # noqa: E402,F401  (the smooth sky, a fixture)
 
-WORLD_COMBOS = [(g, d, e) for g in ("cook_torrance", "unity_smith_joint", "smith_ggx_correlated")
-                for d in ("disney", "lambert") for e in ("none", "compensated")]
+WORLD_COMBOS = [
+    (g, d, e)
+    for g in ("cook_torrance", "unity_smith_joint", "smith_ggx_correlated")
+    for d in ("disney", "lambert")
+    for e in ("none", "compensated")
+]
 WORLD_SAMPLES, WORLD_SIZE, WORLD_GRID = 1024, 48, (3, 2)
 # Mean CIEDE2000 per sphere against the model's own integral (the brief's bound, 0.5), at
 # WORLD_SAMPLES on WORLD_SIZE px: where the closures are the model (Smith's G, Lambert) the
@@ -455,10 +544,14 @@ BOUND_DE = 0.5
 # 0.07-0.45.
 _CT_METALS = {(1.0, 0.5): 0.65, (1.0, 0.0): 0.8}
 _DISNEY_MIRROR = {(0.0, 1.0): 0.6}
-WORLD_BOUND_DE = {(g, d, e): {**(_CT_METALS if g == "cook_torrance" else {}),
-                              **(_DISNEY_MIRROR if d == "disney" else {}),
-                              **({(1.0, 0.5): 0.6} if g == "unity_smith_joint" else {})}
-                  for g, d, e in WORLD_COMBOS}
+WORLD_BOUND_DE = {
+    (g, d, e): {
+        **(_CT_METALS if g == "cook_torrance" else {}),
+        **(_DISNEY_MIRROR if d == "disney" else {}),
+        **({(1.0, 0.5): 0.6} if g == "unity_smith_joint" else {}),
+    }
+    for g, d, e in WORLD_COMBOS
+}
 
 
 def _world_matrix(hdri, shader):
@@ -466,15 +559,24 @@ def _world_matrix(hdri, shader):
     from addon.blender import model_node, scene_builder
     from addon.core.model import ModelOptions
     from addon.core.settings import MatrixSettings
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    s = MatrixSettings(rows=WORLD_GRID[0], cols=WORLD_GRID[1], width=WORLD_SIZE,
-                       height=WORLD_SIZE, hdri=hdri, sun_strength=0.0, mutual_shadows=False,
-                       shader=shader, model=ModelOptions(
-                           light_transport="scene",
-                           ibl="reference" if shader == "osl" else "split_sum"))
+    s = MatrixSettings(
+        rows=WORLD_GRID[0],
+        cols=WORLD_GRID[1],
+        width=WORLD_SIZE,
+        height=WORLD_SIZE,
+        hdri=hdri,
+        sun_strength=0.0,
+        mutual_shadows=False,
+        shader=shader,
+        model=ModelOptions(
+            light_transport="scene", ibl="reference" if shader == "osl" else "split_sum"
+        ),
+    )
     scene = bpy.context.scene
     scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
-    scene.render.dither_intensity = 0.0          # the PNG that compare() reads: no dither noise
+    scene.render.dither_intensity = 0.0  # the PNG that compare() reads: no dither noise
     node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
     return s, scene, node
 
@@ -482,12 +584,17 @@ def _world_matrix(hdri, shader):
 def _render_world(matrix, out, shader, transport, samples, **model):
     from addon.blender import model_node, renderer
     from addon.core.settings import describe
+
     s, scene, node = matrix
     options = s.model_options(light_transport=transport, **model)
     model_node.set_options(node, options)
     renderer.configure(scene, shader, "full", samples, path_traced=options.path_traced())
-    renderer.render(scene, out, dict(describe(s, s.hdri), model=options.as_dict()),
-                    log_path=out.parent / f"{out.name}.log")
+    renderer.render(
+        scene,
+        out,
+        dict(describe(s, s.hdri), model=options.as_dict()),
+        log_path=out.parent / f"{out.name}.log",
+    )
     return out
 
 
@@ -500,27 +607,36 @@ def world_renders(soft_sky, tmp_path_factory):  # noqa: F811
     matrix = _world_matrix(soft_sky, "osl")
     for c in WORLD_COMBOS:
         model = dict(zip(("g_model", "diffuse_model", "energy"), c), env_samples=4)
-        out[c]["model"] = _render_world(matrix, base / ("osl-" + "-".join(c)), "osl", "lab",
-                                        WORLD_SAMPLES, **model)
+        out[c]["model"] = _render_world(
+            matrix, base / ("osl-" + "-".join(c)), "osl", "lab", WORLD_SAMPLES, **model
+        )
     matrix = _world_matrix(soft_sky, "nodes")
     for c in WORLD_COMBOS:
         model = dict(zip(("g_model", "diffuse_model", "energy"), c))
         for transport in ("scene", "lab"):
-            out[c][transport] = _render_world(matrix, base / f"{transport}-{'-'.join(c)}",
-                                              "nodes", transport, WORLD_SAMPLES, **model)
+            out[c][transport] = _render_world(
+                matrix,
+                base / f"{transport}-{'-'.join(c)}",
+                "nodes",
+                transport,
+                WORLD_SAMPLES,
+                **model,
+            )
     return base, out
 
 
 def _sphere_delta_e(a, b, out):
     """Per sphere: (metallic, smoothness), mean CIEDE2000, mean radiance ratio b / a."""
     from addon.core import compare
+
     result = compare.compare(a, b, out)
     ia, _, scene = compare.load_render(a)
     ib, _, _ = compare.load_render(b)
     masks = [compare.cell_mask(ia.shape[:2], c, 0.9) for c in scene["cells"]]
-    return [((c["metallic"], c["smoothness"]), r["ciede2000_mean"],
-             float(ib[m].mean() / ia[m].mean()))
-            for c, r, m in zip(scene["cells"], result["cells"], masks)]
+    return [
+        ((c["metallic"], c["smoothness"]), r["ciede2000_mean"], float(ib[m].mean() / ia[m].mean()))
+        for c, r, m in zip(scene["cells"], result["cells"], masks)
+    ]
 
 
 @pytest.mark.parametrize("combo", WORLD_COMBOS, ids=["-".join(c) for c in WORLD_COMBOS])
@@ -529,8 +645,9 @@ def test_scene_equals_the_models_own_integral_under_the_world(world_renders, com
     model's integral (BOUND_DE, or the measured WORLD_BOUND_DE), its mean radiance within
     1.5%."""
     base, out = world_renders
-    cells = _sphere_delta_e(out[combo]["model"], out[combo]["scene"],
-                            base / ("cmp-" + "-".join(combo)))
+    cells = _sphere_delta_e(
+        out[combo]["model"], out[combo]["scene"], base / ("cmp-" + "-".join(combo))
+    )
     print("scene vs model", combo, [(k, round(de, 2), round(r, 3)) for k, de, r in cells])
     bound = WORLD_BOUND_DE.get(combo, {})
     for key, de, ratio in cells:
@@ -544,10 +661,12 @@ def test_the_scene_transport_is_nearer_the_model_than_the_groups_lab(world_rende
     split-sum, so there it is far nearer the model's integral, for every combination."""
     base, out = world_renders
     for combo in WORLD_COMBOS:
-        scene = _sphere_delta_e(out[combo]["model"], out[combo]["scene"],
-                                base / ("near-scene-" + "-".join(combo)))
-        lab = _sphere_delta_e(out[combo]["model"], out[combo]["lab"],
-                              base / ("near-lab-" + "-".join(combo)))
+        scene = _sphere_delta_e(
+            out[combo]["model"], out[combo]["scene"], base / ("near-scene-" + "-".join(combo))
+        )
+        lab = _sphere_delta_e(
+            out[combo]["model"], out[combo]["lab"], base / ("near-lab-" + "-".join(combo))
+        )
         print("lab vs model", combo, [(k, round(de, 2), round(r, 3)) for k, de, r in lab])
         rough_metal = [(s, l) for s, l in zip(scene, lab) if s[0] == (1.0, 0.0)]
         for (_, de_scene, _), (_, de_lab, ratio_lab) in rough_metal:
@@ -561,22 +680,29 @@ def test_the_correction_is_zero_for_the_closures_own_switches(tmp_path, soft_sky
     Cook-Torrance G the same cut changes it."""
     import bpy
     from addon.core import compare
+
     matrix = _world_matrix(soft_sky, "nodes")
     group = bpy.data.node_groups[node_description.load_description()["group"]["name"]]
-    gate = next(n for n in group.nodes if n.bl_idname == "ShaderNodeMixShader"
-                and n.label.startswith("correction (0"))
+    gate = next(
+        n
+        for n in group.nodes
+        if n.bl_idname == "ShaderNodeMixShader" and n.label.startswith("correction (0")
+    )
     source = _source(gate.inputs[2])
     images = {}
-    for combo in (("smith_ggx_correlated", "lambert", "none"),
-                  ("smith_ggx_correlated", "lambert", "compensated"),
-                  ("cook_torrance", "lambert", "none")):
+    for combo in (
+        ("smith_ggx_correlated", "lambert", "none"),
+        ("smith_ggx_correlated", "lambert", "compensated"),
+        ("cook_torrance", "lambert", "none"),
+    ):
         model = dict(zip(("g_model", "diffuse_model", "energy"), combo))
         for cut in (False, True):
             if cut:
                 group.links.remove(gate.inputs[2].links[0])
             try:
-                out = _render_world(matrix, tmp_path / f"{'-'.join(combo)}-{cut}", "nodes",
-                                    "scene", 16, **model)
+                out = _render_world(
+                    matrix, tmp_path / f"{'-'.join(combo)}-{cut}", "nodes", "scene", 16, **model
+                )
             finally:
                 if cut:
                     group.links.new(source, gate.inputs[2])
@@ -588,6 +714,7 @@ def test_the_correction_is_zero_for_the_closures_own_switches(tmp_path, soft_sky
 
 # --- The residual albedo -------------------------------------------------------------------
 
+
 def _residual_quadrature(g_model, diffuse, energy, mu, pr, spec_color, diff_color, n=480):
     """integral of |f_s,model - f_s,closure| (n.l) dl + integral of |f_d,model - f_Lambert|
     (n.l) dl for each n.v in ``mu`` (the closures: Smith's G, Lambert; with energy
@@ -597,7 +724,7 @@ def _residual_quadrature(g_model, diffuse, energy, mu, pr, spec_color, diff_colo
     One colour channel (spec_color, diff_color scalars)."""
     a = max(pr * pr, 0.002)
     th = (np.arange(n) + 0.5) / n * (np.pi / 2)
-    ph = (np.arange(2 * n) + 0.5) / (2 * n) * np.pi          # phi in [0, pi], doubled
+    ph = (np.arange(2 * n) + 0.5) / (2 * n) * np.pi  # phi in [0, pi], doubled
     T, P = np.meshgrid(th, ph, indexing="ij")
     dw = 2 * np.sin(T) * (np.pi / 2 / n) * (np.pi / (2 * n))
     lx, ly, nl = np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)
@@ -609,8 +736,12 @@ def _residual_quadrature(g_model, diffuse, energy, mu, pr, spec_color, diff_colo
         nh, vh = hz / norm, (hx * vx + hz * m) / norm
         d = a * a / (np.pi * (nh * nh * (a * a - 1) + 1) ** 2)
         a2 = a * a
-        smith = 2 * nl * m / (nl * math.sqrt(m * m * (1 - a2) + a2)
-                              + m * np.sqrt(nl * nl * (1 - a2) + a2))
+        smith = (
+            2
+            * nl
+            * m
+            / (nl * math.sqrt(m * m * (1 - a2) + a2) + m * np.sqrt(nl * nl * (1 - a2) + a2))
+        )
         if g_model == "cook_torrance":
             g = np.minimum(1, np.minimum(2 * nh * m / vh, 2 * nh * nl / vh))
         elif g_model == "unity_smith_joint":
@@ -632,6 +763,7 @@ def _residual_quadrature(g_model, diffuse, energy, mu, pr, spec_color, diff_colo
         f_avg = spec_color + (1 - spec_color) / 21
         f_ms = f_avg * e_avg / (1 - f_avg * (1 - e_avg))
         return lambda m: 1 + f_ms * (1 - np.interp(m, ms, E)) / np.interp(m, ms, E)
+
     k_g, k_s = k_ms(0), k_ms(1)
     out = []
     for m in np.atleast_1d(mu):
@@ -648,9 +780,11 @@ def _with_residual_output(mp):
     GROUP_OUTPUTS has it)."""
     from addon.blender import node_group
     from addon.core.model import GROUP_OUTPUTS
+
     if node_group.RESIDUAL_OUTPUT not in dict(GROUP_OUTPUTS):
-        mp.setattr(node_group, "GROUP_OUTPUTS",
-                   GROUP_OUTPUTS + ((node_group.RESIDUAL_OUTPUT, "RGBA"),))
+        mp.setattr(
+            node_group, "GROUP_OUTPUTS", GROUP_OUTPUTS + ((node_group.RESIDUAL_OUTPUT, "RGBA"),)
+        )
 
 
 # (got / quadrature) allowed per band. Energy none: the tables are the quadrature of the same
@@ -658,9 +792,11 @@ def _with_residual_output(mp):
 # two triangle-inequality bounds of |k_G f_G - k_S f_S| (k_ms is constant over l, but the
 # tables hold |f_G - f_S| alone), an upper bound: measured 0.998-1.02 on the dielectric,
 # 1.16-2.23 on the white metal (grazing bands the most).
-RESIDUAL_CASES = {("cook_torrance", "none"): (0.97, 1.03),
-                  ("unity_smith_joint", "none"): (0.97, 1.03),
-                  ("cook_torrance", "compensated"): (0.97, 2.5)}
+RESIDUAL_CASES = {
+    ("cook_torrance", "none"): (0.97, 1.03),
+    ("unity_smith_joint", "none"): (0.97, 1.03),
+    ("cook_torrance", "compensated"): (0.97, 2.5),
+}
 
 
 @pytest.mark.parametrize("g_model,energy", list(RESIDUAL_CASES))
@@ -675,22 +811,38 @@ def test_the_residual_albedo_output_is_the_quadrature(tmp_path, g_model, energy)
     from addon.core import compare
     from addon.core.model import OSL_RESIDUAL, ModelOptions
     from addon.core.settings import MatrixSettings
+
     with pytest.MonkeyPatch.context() as mp:
         _with_residual_output(mp)
         bpy.ops.wm.read_factory_settings(use_empty=True)
-        s = MatrixSettings(rows=1, cols=2, width=160, height=80, albedo=(1.0, 1.0, 1.0),
-                           sun_strength=0.0, mutual_shadows=False, shader="nodes",
-                           model=ModelOptions(light_transport="scene", g_model=g_model,
-                                              diffuse_model="disney", energy=energy,
-                                              ibl="split_sum"))
+        s = MatrixSettings(
+            rows=1,
+            cols=2,
+            width=160,
+            height=80,
+            albedo=(1.0, 1.0, 1.0),
+            sun_strength=0.0,
+            mutual_shadows=False,
+            shader="nodes",
+            model=ModelOptions(
+                light_transport="scene",
+                g_model=g_model,
+                diffuse_model="disney",
+                energy=energy,
+                ibl="split_sum",
+            ),
+        )
         scene = bpy.context.scene
         desc = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
         mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
         node = model_node.find(mat)
         residual = node.outputs["Residual Albedo"]
-        aovs = [link.to_node for link in residual.links
-                if link.to_node.bl_idname == "ShaderNodeOutputAOV"]
-        assert len(aovs) == 1 and aovs[0].aov_name == OSL_RESIDUAL     # connect_residual
+        aovs = [
+            link.to_node
+            for link in residual.links
+            if link.to_node.bl_idname == "ShaderNodeOutputAOV"
+        ]
+        assert len(aovs) == 1 and aovs[0].aov_name == OSL_RESIDUAL  # connect_residual
         nt = mat.node_tree
         emit = nt.nodes.new("ShaderNodeEmission")
         nt.links.new(residual, emit.inputs["Color"])
@@ -711,18 +863,27 @@ def test_the_residual_albedo_output_is_the_quadrature(tmp_path, g_model, energy)
         dx = (xx + 0.5 - cell["center_px"][0]) / cell["radius_px"]
         dz = (yy + 0.5 - cell["center_px"][1]) / cell["radius_px"]
         r2 = dx * dx + dz * dz
-        inside = r2 < 0.96                      # n.v >= 0.2
+        inside = r2 < 0.96  # n.v >= 0.2
         mu = np.sqrt(np.clip(1 - r2, 0, 1))
         assert not lab[r2 < 0.9].any()
         assert np.isfinite(img).all() and (img[inside] >= 0).all()
         assert np.allclose(img[inside][:, 0], img[inside][:, 2], rtol=1e-5, atol=1e-7)
         grid = np.linspace(0.2, 1.0, 17)
-        want_grid = _residual_quadrature(g_model, "disney", energy, grid, 0.5,
-                                         1.0 if metal else 0.04, 0.0 if metal else 0.96)
+        want_grid = _residual_quadrature(
+            g_model, "disney", energy, grid, 0.5, 1.0 if metal else 0.04, 0.0 if metal else 0.96
+        )
         for lo, hi in ((0.2, 0.4), (0.4, 0.7), (0.7, 1.0)):
             band = inside & (mu >= lo) & (mu < hi)
             want = float(np.interp(mu[band], grid, want_grid).mean())
             got = float(img[..., 1][band].mean())
-            print("residual", g_model, energy, "metal" if metal else "dielectric", (lo, hi),
-                  round(got, 5), round(want, 5), round(got / want, 4))
+            print(
+                "residual",
+                g_model,
+                energy,
+                "metal" if metal else "dielectric",
+                (lo, hi),
+                round(got, 5),
+                round(want, 5),
+                round(got / want, 4),
+            )
             assert lo_ratio * want <= got <= hi_ratio * want, (metal, lo, hi, got, want)

@@ -12,11 +12,13 @@ from helpers import ROOT
 DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 # a repository path: a top-level folder, then names, ending in a file's extension
-REPO_PATH = re.compile(r"(?<![\w/.-])((?:addon|osl|node_groups|scripts|tests|bench|docs)"
-                       r"/[\w/*.-]*\.(?:py|osl|h|toml|sh|md|txt|json|npy|png))\b")
+REPO_PATH = re.compile(
+    r"(?<![\w/.-])((?:addon|osl|node_groups|scripts|tests|bench|docs)"
+    r"/[\w/*.-]*\.(?:py|osl|h|toml|sh|md|txt|json|npy|png))\b"
+)
 # a module named by its layer: core/model.py, blender/node_group.py ...
 LAYER_PATH = re.compile(r"(?<![\w/.-])((?:core|blender|jobs|ui)/\w+\.py)\b")
-PLACEHOLDER = re.compile(r"/[A-Z]{3,}\.")       # tests/FILE.py, addon/data/NAME.npy
+PLACEHOLDER = re.compile(r"/[A-Z]{3,}\.")  # tests/FILE.py, addon/data/NAME.npy
 MODULES = sorted(p for p in (ROOT / "addon").glob("*/**/*.py") if p.stem != "__init__")
 
 
@@ -29,16 +31,22 @@ def _exists(name: str, base: Path) -> bool:
 @pytest.mark.parametrize("page", DOCS, ids=lambda p: p.name)
 def test_every_relative_link_resolves(page):
     text = page.read_text()
-    broken = [target for target in LINK.findall(text)
-              if "://" not in target and not (page.parent / target).exists()]
+    broken = [
+        target
+        for target in LINK.findall(text)
+        if "://" not in target and not (page.parent / target).exists()
+    ]
     assert not broken, f"{page.name}: {broken}"
 
 
 def _sources():
     for folder in ("addon", "scripts", "tests", "osl", "node_groups", ".ci"):
         for path in (ROOT / folder).rglob("*"):
-            if path.suffix in (".py", ".osl", ".h", ".toml", ".sh", "") and path.is_file() \
-                    and "__pycache__" not in path.parts:
+            if (
+                path.suffix in (".py", ".osl", ".h", ".toml", ".sh", "")
+                and path.is_file()
+                and "__pycache__" not in path.parts
+            ):
                 yield path
     yield from DOCS
 
@@ -58,10 +66,12 @@ def test_every_file_the_docs_and_comments_name_exists():
 
 def test_every_module_is_named_in_the_architecture():
     text = (ROOT / "docs" / "architecture.md").read_text()
+
     def named(p):
-        if p.parent.parent.name != "addon":          # a package's module: by its path
+        if p.parent.parent.name != "addon":  # a package's module: by its path
             return f"{p.parent.name}/{p.name}" in text
         return f"`{p.stem}`" in text or f"{p.parent.name}/{p.name}" in text
+
     missing = [str(p.relative_to(ROOT)) for p in MODULES if not named(p)]
     assert not missing, missing
 

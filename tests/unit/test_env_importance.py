@@ -6,11 +6,10 @@ import numpy as np
 from addon.core.env_importance import build_tables, tile_weights
 
 
-
 def test_density_is_that_of_the_tabulated_draw():
     rng = np.random.default_rng(0)
     pixels = rng.gamma(0.5, 1.0, size=(32, 64, 3)).astype(np.float32)
-    pixels[5, 40] = 5000.0                                     # a sun
+    pixels[5, 40] = 5000.0  # a sun
     marginal, conditional, density = build_tables(tile_weights(pixels, rows=8, cols=16), size=1024)
     rows, cols = density.shape
     # simulate the shader's draw: u1 -> row via marginal, u2 -> column via conditional
@@ -21,8 +20,8 @@ def test_density_is_that_of_the_tabulated_draw():
     c = conditional[r, k2].astype(int)
     hist = np.bincount(r * cols + c, minlength=rows * cols).reshape(rows, cols) / n
     np.testing.assert_allclose(hist * rows * cols, density, atol=0.05 * density.max())
-    assert abs(density.mean() - 1.0) < 1e-6                    # a density over [0,1]^2
-    assert density[5 // 4, 40 // 4] == density.max()          # the sun's tile is likeliest
+    assert abs(density.mean() - 1.0) < 1e-6  # a density over [0,1]^2
+    assert density[5 // 4, 40 // 4] == density.max()  # the sun's tile is likeliest
 
 
 def test_uniform_world_gives_solid_angle_density():
@@ -37,6 +36,7 @@ def _tile_luminance(weights):
     """Undo tile_weights' sin(theta) factor and floor: W = L sin + FLOOR a sin with
     a = mean(L sin), so with X = W / sin, a = mean(X sin) / (1 + FLOOR mean(sin))."""
     from addon.core.env_importance import FLOOR
+
     rows = weights.shape[0]
     sin = np.sin((np.arange(rows) + 0.5) / rows * np.pi)[:, None]
     x = weights / sin
@@ -50,6 +50,7 @@ def test_small_and_odd_sized_maps_fill_the_fixed_grid():
     map's own size (the old rule), or a resampling that lost area, fails."""
     from addon.core.env_importance import TILE_COLS, TILE_ROWS
     from addon.core.model import REC709_LUMINANCE
+
     y = np.array(REC709_LUMINANCE, np.float32)
     rng = np.random.default_rng(2)
     small = rng.gamma(2.0, 1.0, size=(8, 16, 3)).astype(np.float32)

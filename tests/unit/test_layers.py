@@ -21,25 +21,26 @@ def _modules():
     graph = {}
     for layer in LAYERS:
         for path in sorted((ADDON / layer).rglob("*.py")):
-            rel = path.relative_to(ADDON).with_suffix("").parts      # ("ui", "operators", "jobs")
-            package = rel[:-1]                                      # ("ui", "operators")
+            rel = path.relative_to(ADDON).with_suffix("").parts  # ("ui", "operators", "jobs")
+            package = rel[:-1]  # ("ui", "operators")
             if rel[-1] == "__init__":
                 rel = rel[:-1]
                 package = rel
             if len(rel) < 2:
-                continue                                            # the layer's __init__
+                continue  # the layer's __init__
             name = (layer, ".".join(rel[1:]))
             edges = graph.setdefault(name, [])
             for node in ast.walk(ast.parse(path.read_text(), str(path))):
                 if isinstance(node, ast.ImportFrom) and node.level:
-                    base = list(package[:len(package) - (node.level - 1)])
+                    base = list(package[: len(package) - (node.level - 1)])
                     parts = (node.module or "").split(".") if node.module else []
                     target = base + parts
                     # "from ..blender import model_node": the names are the modules
-                    targets = [target + [a.name] for a in node.names] if len(target) < 2 \
-                        else [target]
+                    targets = (
+                        [target + [a.name] for a in node.names] if len(target) < 2 else [target]
+                    )
                     for target in targets:
-                        if len(target) < 2:            # the add-on's own package
+                        if len(target) < 2:  # the add-on's own package
                             continue
                         edges.append((target[0], _module_of(target), node.lineno))
                 elif isinstance(node, ast.Import):
@@ -70,23 +71,32 @@ def test_every_module_lives_in_a_layer():
 
 def test_imports_only_go_down():
     rank = {layer: i for i, layer in enumerate(LAYERS)}
-    upward = [f"{layer}.{mod}:{line} imports {tl}.{tm}"
-              for (layer, mod), edges in GRAPH.items() for tl, tm, line in edges
-              if tl in rank and rank[tl] > rank[layer]]
+    upward = [
+        f"{layer}.{mod}:{line} imports {tl}.{tm}"
+        for (layer, mod), edges in GRAPH.items()
+        for tl, tm, line in edges
+        if tl in rank and rank[tl] > rank[layer]
+    ]
     assert not upward, upward
 
 
 def test_the_core_needs_no_blender():
-    found = [f"core.{mod}:{line} imports {tm}" for (layer, mod), edges in GRAPH.items()
-             if layer == "core" for tl, tm, line in edges
-             if tl == "external" and tm in BLENDER_MODULES]
+    found = [
+        f"core.{mod}:{line} imports {tm}"
+        for (layer, mod), edges in GRAPH.items()
+        if layer == "core"
+        for tl, tm, line in edges
+        if tl == "external" and tm in BLENDER_MODULES
+    ]
     assert not found, found
 
 
 def test_no_import_cycle():
     modules = {m for m in GRAPH}
-    succ = {m: {(tl, tm) for tl, tm, _ in edges if (tl, tm) in modules and (tl, tm) != m}
-            for m, edges in GRAPH.items()}
+    succ = {
+        m: {(tl, tm) for tl, tm, _ in edges if (tl, tm) in modules and (tl, tm) != m}
+        for m, edges in GRAPH.items()
+    }
     state, path = {}, []
 
     def visit(m):
@@ -94,12 +104,13 @@ def test_no_import_cycle():
         path.append(m)
         for n in succ[m]:
             if state.get(n) == "open":
-                cycle = path[path.index(n):] + [n]
+                cycle = path[path.index(n) :] + [n]
                 raise AssertionError(" -> ".join(".".join(x) for x in cycle))
             if n not in state:
                 visit(n)
         path.pop()
         state[m] = "done"
+
     for m in sorted(modules):
         if m not in state:
             visit(m)
@@ -109,9 +120,12 @@ def _repository_files():
     skip = {".git", ".venv", "out", "dist", "__pycache__", ".pytest_cache"}
     for path in ROOT.rglob("*"):
         rel = path.relative_to(ROOT)
-        if path.is_file() and not any(p in skip or p.startswith(".venv") for p in rel.parts) \
-                and path.suffix in (".py", ".osl", ".toml", ".md", ".sh", ".txt", "") \
-                and rel.parts[0] != ".git":
+        if (
+            path.is_file()
+            and not any(p in skip or p.startswith(".venv") for p in rel.parts)
+            and path.suffix in (".py", ".osl", ".toml", ".md", ".sh", ".txt", "")
+            and rel.parts[0] != ".git"
+        ):
             yield rel, path
 
 
@@ -136,12 +150,19 @@ def test_the_unit_tier_needs_no_blender():
     found = []
     for path in sorted((ROOT / "tests" / "unit").glob("*.py")):
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
-            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
-                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             for name in names:
                 top = name.split(".")
-                if top[0] in BLENDER_MODULES or (top[0] == "addon" and len(top) > 1
-                                                 and top[1] in ("blender", "jobs", "ui")) \
-                        or name == "blender_fixtures":
+                if (
+                    top[0] in BLENDER_MODULES
+                    or (top[0] == "addon" and len(top) > 1 and top[1] in ("blender", "jobs", "ui"))
+                    or name == "blender_fixtures"
+                ):
                     found.append(f"{path.name}:{node.lineno} imports {name}")
     assert not found, found

@@ -17,16 +17,24 @@ GEOMETRY = {"geo.Normal", "geo.Incoming", "geo.Position"}
 
 
 def test_the_parser_reads_calls_names_with_spaces_and_numbers():
-    assert nd.parse("math.MULTIPLY(a, 2.5)") == \
-        ("call", "math.MULTIPLY", [("ref", "a"), ("num", 2.5)])
-    assert nd.parse("vec.SCALE(in.Sun Direction, math.ADD!(x(geo.Normal), -1e-3))") == \
-        ("call", "vec.SCALE", [("ref", "in.Sun Direction"),
-                               ("call", "math.ADD!", [("call", "x", [("ref", "geo.Normal")]),
-                                                      ("num", -1e-3)])])
+    assert nd.parse("math.MULTIPLY(a, 2.5)") == (
+        "call",
+        "math.MULTIPLY",
+        [("ref", "a"), ("num", 2.5)],
+    )
+    assert nd.parse("vec.SCALE(in.Sun Direction, math.ADD!(x(geo.Normal), -1e-3))") == (
+        "call",
+        "vec.SCALE",
+        [
+            ("ref", "in.Sun Direction"),
+            ("call", "math.ADD!", [("call", "x", [("ref", "geo.Normal")]), ("num", -1e-3)]),
+        ],
+    )
 
 
-@pytest.mark.parametrize("text", ["math.ADD(a", "f(", "f(a b (", "", "f(,)", "f(a) g",
-                                  "f(1 2)", "f(a))", ")"])
+@pytest.mark.parametrize(
+    "text", ["math.ADD(a", "f(", "f(a b (", "", "f(,)", "f(a) g", "f(1 2)", "f(a))", ")"]
+)
 def test_a_malformed_expression_is_one_line(text):
     with pytest.raises(UserError, match="node description"):
         nd.parse(text)
@@ -46,7 +54,7 @@ def _refs(tree):
     if tree[0] == "ref":
         yield tree[1]
     elif tree[0] == "call":
-        files = 1 if tree[1] in ("env", "table") else 0     # a baked file's name comes first
+        files = 1 if tree[1] in ("env", "table") else 0  # a baked file's name comes first
         for arg in tree[2][files:]:
             yield from _refs(arg)
 
@@ -59,8 +67,9 @@ def test_every_name_resolves():
     nodes = {n for f in data["frames"].values() for n in f["nodes"]}
     inputs = {f"in.{i.group}" for i in GROUP_INPUTS}
     light_fields = {f"light.{f}" for f in data["lights"]["key"]}
-    texts = [(f.get("per_light", False), t) for f in data["frames"].values()
-             for t in f["nodes"].values()]
+    texts = [
+        (f.get("per_light", False), t) for f in data["frames"].values() for t in f["nodes"].values()
+    ]
     texts += [(False, t) for t in data["views"].values()]
     texts += [(False, data["scene"][k]) for k in nd.SCENE_EXPRESSIONS]
     unknown = set()

@@ -14,7 +14,6 @@ from addon.core.hdri import oiio
 from addon.core.raster import Canvas, colormap, diverging
 
 
-
 def ink(c: Canvas) -> np.ndarray:
     """How much black there is in each pixel of a white canvas (0..1)."""
     return 1.0 - c.rgb.mean(axis=2)
@@ -33,6 +32,7 @@ def luminance(rgb: np.ndarray) -> np.ndarray:
 
 # --- The font ------------------------------------------------------------------------
 
+
 def test_the_atlas_names_its_source_and_holds_every_glyph():
     meta = json.loads((DATA_DIR / "font_atlas.json").read_text(encoding="utf-8"))
     assert "Inter" in meta["source"] and "Open Font License 1.1" in meta["source"]
@@ -48,6 +48,7 @@ def test_the_atlas_names_its_source_and_holds_every_glyph():
 
 
 # --- Text ----------------------------------------------------------------------------
+
 
 def test_text_sits_on_its_baseline_inside_its_box():
     for size in raster.font_sizes():
@@ -67,7 +68,7 @@ def test_text_sits_on_its_baseline_inside_its_box():
         assert 50 - 1.1 * size <= y0 and y1 <= 50 + 0.35 * size
         assert y1 > 50, "descenders go below the baseline"
         outside = a.copy()
-        outside[int(50 - 1.1 * size):int(50 + 0.35 * size) + 1, 18:int(20 + width + 3)] = 0
+        outside[int(50 - 1.1 * size) : int(50 + 0.35 * size) + 1, 18 : int(20 + width + 3)] = 0
         assert outside.max() == 0
         assert a.sum() > 0.5 * size * len("Hxgjpy|")
 
@@ -119,10 +120,16 @@ def test_text_off_the_canvas_is_clipped():
 
 # --- Lines ---------------------------------------------------------------------------
 
-@pytest.mark.parametrize("p, q, width", [((20, 30.5), (180, 30.5), 2.0),
-                                         ((20, 20), (150, 120), 1.5),
-                                         ((15, 140), (170, 60), 3.0),
-                                         ((20, 20), (170, 150), 0.5)])
+
+@pytest.mark.parametrize(
+    "p, q, width",
+    [
+        ((20, 30.5), (180, 30.5), 2.0),
+        ((20, 20), (150, 120), 1.5),
+        ((15, 140), (170, 60), 3.0),
+        ((20, 20), (170, 150), 0.5),
+    ],
+)
 def test_a_line_holds_length_times_width_of_ink(p, q, width):
     c = Canvas(200, 160)
     c.line([p, q], (0, 0, 0), width=width)
@@ -137,7 +144,7 @@ def test_a_line_is_symmetric_about_itself():
     assert np.allclose(a, a.T, atol=1e-5) and a.max() == pytest.approx(1.0, abs=1e-5)
 
     c = Canvas(100, 100)
-    c.line([(10, 50), (90, 50)], (0, 0, 0), width=3.0)      # centred on a row boundary
+    c.line([(10, 50), (90, 50)], (0, 0, 0), width=3.0)  # centred on a row boundary
     column = ink(c)[:, 50]
     assert np.allclose(column[:50], column[50:][::-1], atol=1e-6)
     assert column[48:52].tolist() == pytest.approx([0.5, 1, 1, 0.5])
@@ -150,9 +157,13 @@ def test_a_curve_is_anti_aliased_without_gaps():
     a = ink(c)
     assert a.sum() == pytest.approx(2 * np.pi * 80 * 1.5, rel=0.1)
     assert 0 < (a[(a > 0.02) & (a < 0.98)]).size, "partial coverage at the edges"
-    ring = [a[int(100 + 80 * np.sin(s)) - 2:int(100 + 80 * np.sin(s)) + 3,
-              int(100 + 80 * np.cos(s)) - 2:int(100 + 80 * np.cos(s)) + 3].sum()
-            for s in np.linspace(0, 2 * np.pi, 90)]
+    ring = [
+        a[
+            int(100 + 80 * np.sin(s)) - 2 : int(100 + 80 * np.sin(s)) + 3,
+            int(100 + 80 * np.cos(s)) - 2 : int(100 + 80 * np.cos(s)) + 3,
+        ].sum()
+        for s in np.linspace(0, 2 * np.pi, 90)
+    ]
     assert min(ring) > 2.0
 
 
@@ -170,7 +181,7 @@ def test_dashes_leave_gaps():
 def test_lines_are_clipped_at_the_edges():
     c = Canvas(100, 40)
     c.line([(-50, 10.5), (250, 10.5)], (0, 0, 0), width=2.0)
-    c.line([(-50, -20), (-10, -5)], (0, 0, 0), width=2.0)     # wholly outside
+    c.line([(-50, -20), (-10, -5)], (0, 0, 0), width=2.0)  # wholly outside
     c.line([(np.nan, 5), (np.nan, np.nan)], (0, 0, 0))
     assert ink(c).sum() == pytest.approx(100 * 2.0, rel=1e-4)
 
@@ -188,10 +199,11 @@ def test_colour_is_blended_by_coverage():
     px = c.rgb[9, 30]
     assert px.tolist() == pytest.approx([1, 0, 0])
     px = c.rgb[:, 30]
-    assert np.allclose(px[:, 0] + px[:, 2], 1.0)        # red over blue, nothing else
+    assert np.allclose(px[:, 0] + px[:, 2], 1.0)  # red over blue, nothing else
 
 
 # --- Images and rectangles -----------------------------------------------------------
+
 
 def test_paste_scales_by_whole_pixels_and_clips():
     img = np.array([[[1, 0, 0], [0, 1, 0]], [[0, 0, 1], [1, 1, 0]]], np.float32)
@@ -200,7 +212,7 @@ def test_paste_scales_by_whole_pixels_and_clips():
     assert np.array_equal(c.rgb[4:10, 3:9], np.repeat(np.repeat(img, 3, 0), 3, 1))
     assert c.rgb[:4].max() == 0 and c.rgb[10:].max() == 0 and c.rgb[:, 9:].max() == 0
     c = Canvas(5, 5, background=(0, 0, 0))
-    c.paste(-2, 3, img, scale=2)                          # partly off the left and bottom
+    c.paste(-2, 3, img, scale=2)  # partly off the left and bottom
     assert c.rgb[3, 0].tolist() == [0, 1, 0] and c.rgb[3, 2].max() == 0
     assert c.rgb[4, 0].tolist() == [0, 1, 0]
 
@@ -217,6 +229,7 @@ def test_rect_fills_and_strokes_whole_pixels():
 
 # --- Colour maps ---------------------------------------------------------------------
 
+
 def test_colormap_is_viridis():
     assert colormap(0.0).tolist() == pytest.approx([0.267, 0.005, 0.329], abs=0.02)
     assert colormap(1.0).tolist() == pytest.approx([0.993, 0.906, 0.144], abs=0.02)
@@ -224,8 +237,10 @@ def test_colormap_is_viridis():
     assert colormap(0.25).tolist() == pytest.approx([0.230, 0.322, 0.546], abs=0.01)
     y = luminance(colormap(np.linspace(0, 1, 1001)))
     assert np.all(np.diff(y) > 0)
-    assert colormap(np.array([-1.0, 2.0])).tolist() == [colormap(0.0).tolist(),
-                                                        colormap(1.0).tolist()]
+    assert colormap(np.array([-1.0, 2.0])).tolist() == [
+        colormap(0.0).tolist(),
+        colormap(1.0).tolist(),
+    ]
     assert colormap(np.full((4, 5), np.nan)).shape == (4, 5, 3)
     assert colormap(np.nan).tolist() == pytest.approx([0.5, 0.5, 0.5])
 
@@ -244,10 +259,11 @@ def test_diverging_is_blue_white_red_and_symmetric():
 
 # --- PNG -----------------------------------------------------------------------------
 
+
 def test_save_png_round_trips_and_leaves_no_temporary(tmp_path):
     c = Canvas(37, 23, background=(0.2, 0.4, 0.6))
     c.paste(0, 0, colormap(np.linspace(0, 1, 37))[None].repeat(5, 0))
-    c.rgb[10, 10] = (1.5, -0.5, 0.5)                       # out of range: clipped
+    c.rgb[10, 10] = (1.5, -0.5, 0.5)  # out of range: clipped
     c.save_png(tmp_path / "plot.png")
     assert [p.name for p in tmp_path.iterdir()] == ["plot.png"]
     OIIO = oiio()
@@ -267,12 +283,12 @@ def test_a_failed_save_leaves_nothing(tmp_path, monkeypatch):
 
     (tmp_path / "plot.png").write_bytes(b"old")
     (tmp_path / "old.png").hardlink_to(tmp_path / "plot.png")
-    c.save_png(tmp_path / "plot.png")                      # replaced by a rename, not rewritten
+    c.save_png(tmp_path / "plot.png")  # replaced by a rename, not rewritten
     assert (tmp_path / "plot.png").read_bytes()[:4] == b"\x89PNG"
     assert (tmp_path / "old.png").read_bytes() == b"old"
     (tmp_path / "old.png").unlink()
 
-    class HalfWritten:                                     # a writer that fails halfway
+    class HalfWritten:  # a writer that fails halfway
         def __init__(self, spec):
             pass
 
@@ -291,7 +307,7 @@ def test_a_failed_save_leaves_nothing(tmp_path, monkeypatch):
             return HalfWritten if name == "ImageBuf" else getattr(oiio(), name)
 
     good = (tmp_path / "plot.png").read_bytes()
-    monkeypatch.setattr(compare, "oiio", FailingOIIO)     # the one PNG writer
+    monkeypatch.setattr(compare, "oiio", FailingOIIO)  # the one PNG writer
     with pytest.raises(UserError, match="No space left"):
         c.save_png(tmp_path / "plot.png")
     assert (tmp_path / "plot.png").read_bytes() == good

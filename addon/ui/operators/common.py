@@ -12,10 +12,13 @@ from .. import preferences
 _DEFAULTS = MatrixSettings()
 _IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in IBL_MODES)
 _SHADER_ITEMS = tuple((s, *SHADER_LABELS[s]) for s in SHADERS)
-_IMPL_ITEMS = (("PREFERENCES", "Preferences' Default", "The add-on preferences' implementation"),
-               ) + preferences.IMPLEMENTATION_ITEMS
-_SCOPE_ITEMS = (("ACTIVE", "Active Material", "The active object's active material"),
-                ("SELECTED", "Selected Objects", "Every material of the selected objects"))
+_IMPL_ITEMS = (
+    ("PREFERENCES", "Preferences' Default", "The add-on preferences' implementation"),
+) + preferences.IMPLEMENTATION_ITEMS
+_SCOPE_ITEMS = (
+    ("ACTIVE", "Active Material", "The active object's active material"),
+    ("SELECTED", "Selected Objects", "Every material of the selected objects"),
+)
 
 
 class _progress:
@@ -34,9 +37,9 @@ class _progress:
             print(f"Cook-Torrance Lab: {self.status}", flush=True)
             if self.workspace is not None:
                 self.workspace.status_text_set(self.status)
-                try:                                # drawn now, before the work blocks
+                try:  # drawn now, before the work blocks
                     bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
-                except RuntimeError:                # no window to draw (background)
+                except RuntimeError:  # no window to draw (background)
                     pass
         return self
 

@@ -10,7 +10,7 @@ import bpy
 # ----------------------------------------------------------------------------------------
 # The comparison job in the background
 
-JOBS: dict = {}                  # "comparison", "plot" -> background_job.Job
+JOBS: dict = {}  # "comparison", "plot" -> background_job.Job
 PLOT_IMAGE = "Cook-Torrance BRDF Plot"
 
 
@@ -23,27 +23,37 @@ def _job_tick():
     for kind, job in list(JOBS.items()):
         state = job.poll()
         if kind == "comparison":
-            wm.ctlab_job_progress, wm.ctlab_job_message, wm.ctlab_job_state = \
-                job.fraction, job.message, state
+            wm.ctlab_job_progress, wm.ctlab_job_message, wm.ctlab_job_state = (
+                job.fraction,
+                job.message,
+                state,
+            )
         else:
             wm.ctlab_plot_message, wm.ctlab_plot_state = job.message, state
         if state in ("running", "cancelling"):
             running = True
         elif not getattr(job, "handled", False):
             job.handled = True
-            if getattr(job, "staging", None) is not None:       # the scene job's file copy
+            if getattr(job, "staging", None) is not None:  # the scene job's file copy
                 import shutil
+
                 shutil.rmtree(job.staging, ignore_errors=True)
-            if kind == "comparison" and state == "done" and job.open_report and \
-                    not bpy.app.background:
+            if (
+                kind == "comparison"
+                and state == "done"
+                and job.open_report
+                and not bpy.app.background
+            ):
                 bpy.ops.wm.url_open(url=job.report.as_uri())
             elif kind == "plot" and state == "done":
                 try:
                     show_plot(job.out_dir / "plot.png")
-                except (RuntimeError, OSError) as exc:     # the file went away meanwhile
+                except (RuntimeError, OSError) as exc:  # the file went away meanwhile
                     job.state = "failed"
-                    wm.ctlab_plot_message, wm.ctlab_plot_state = \
-                        f"cannot open plot.png: {exc}", "failed"
+                    wm.ctlab_plot_message, wm.ctlab_plot_state = (
+                        f"cannot open plot.png: {exc}",
+                        "failed",
+                    )
     for window in wm.windows:
         for area in window.screen.areas:
             if area.type in ('VIEW_3D', 'PROPERTIES', 'IMAGE_EDITOR'):
@@ -52,7 +62,7 @@ def _job_tick():
 
 
 def _start_tick() -> None:
-    if not bpy.app.timers.is_registered(_job_tick):     # one timer, however many jobs
+    if not bpy.app.timers.is_registered(_job_tick):  # one timer, however many jobs
         bpy.app.timers.register(_job_tick, first_interval=0.5)
 
 
@@ -66,7 +76,7 @@ def show_plot(path: Path) -> bpy.types.Image:
         image = bpy.data.images.load(str(path))
         image.name = PLOT_IMAGE
     else:
-        if image.packed_file is not None:          # packed by the user: show the new file
+        if image.packed_file is not None:  # packed by the user: show the new file
             image.unpack(method='REMOVE')
         image.filepath = str(path)
         image.reload()
@@ -92,8 +102,6 @@ def _start_comparison(context, job) -> None:
     wm = context.window_manager
     wm.ctlab_job_state, wm.ctlab_job_message, wm.ctlab_job_progress = "running", "starting", 0.0
     _start_tick()
-
-
 
 
 def stop_jobs() -> None:

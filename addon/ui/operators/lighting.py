@@ -11,12 +11,15 @@ from ...core.errors import UserError
 def sync_summary(scene, count: int) -> str:
     """What light sync did, in one line: the key Sun (if any), the lights in slots, the world."""
     from ...blender import scene_lights
+
     sun = light_sync.key_sun(scene)
     used, unused = scene_lights.scene_lights(scene, exclude=sun)
     lights = [f"the key Sun {sun.name}"] if sun else ["no key Sun"]
     if used:
-        lights.append(f"{len(used)} light{'s' * (len(used) != 1)} in slots "
-                      f"({', '.join(o.name for o in used)})")
+        lights.append(
+            f"{len(used)} light{'s' * (len(used) != 1)} in slots "
+            f"({', '.join(o.name for o in used)})"
+        )
     if unused:
         lights.append(f"{len(unused)} left over")
     return f"{count} material{'s' * (count != 1)} follow {'; '.join(lights)} and the world"
@@ -25,6 +28,7 @@ def sync_summary(scene, count: int) -> str:
 class CTLAB_OT_sync_lighting(bpy.types.Operator):
     """Drive every Cook-Torrance material's key light from the key Sun and its HDRI from the
     world (done by itself when they change; this redoes it now)"""
+
     bl_idname = "ctlab.sync_lighting"
     bl_label = "Sync Lighting"
     bl_options = {'REGISTER', 'UNDO'}

@@ -16,6 +16,7 @@ from .common import _IMPL_ITEMS, _SCOPE_ITEMS, _active_material, _implementation
 # ----------------------------------------------------------------------------------------
 # Materials
 
+
 def _assign(obj, mat) -> None:
     if obj is None or not hasattr(obj.data, "materials"):
         return
@@ -28,25 +29,29 @@ def _assign(obj, mat) -> None:
 class CTLAB_OT_new_material(bpy.types.Operator):
     """Create a Cook-Torrance material, assign it to the active object's active slot, and
     light it from the scene's Sun and world"""
+
     bl_idname = "ctlab.new_material"
     bl_label = "New Cook-Torrance Material"
     bl_options = {'REGISTER', 'UNDO'}
 
-    implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS,
-                                 default="PREFERENCES")
-    light_transport: EnumProperty(name="Light Transport", items=TRANSPORT_ITEMS,
-                                  default="scene")
+    implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS, default="PREFERENCES")
+    light_transport: EnumProperty(name="Light Transport", items=TRANSPORT_ITEMS, default="scene")
 
     def execute(self, context):
         impl = _implementation(self.implementation)
         mat = bpy.data.materials.new("Cook-Torrance")
         try:
             from ...blender.compat import use_nodes
+
             use_nodes(mat)
             tree = mat.node_tree
             tree.nodes.clear()
-            with _progress(context, "Compiling the Cook-Torrance OSL shader..."
-                           if impl == "osl" else "Building the Cook-Torrance node group..."):
+            with _progress(
+                context,
+                "Compiling the Cook-Torrance OSL shader..."
+                if impl == "osl"
+                else "Building the Cook-Torrance node group...",
+            ):
                 node = model_node.new_node(tree, impl)
             model_node.connect_output(tree, node)
             model_node.link_geometry_normal(tree, node)
@@ -61,8 +66,7 @@ class CTLAB_OT_new_material(bpy.types.Operator):
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
         _assign(context.object, mat)
-        self.report({'INFO'}, f"New {IMPLEMENTATION_LABELS[impl][0]} material "
-                              f"{mat.name!r}")
+        self.report({'INFO'}, f"New {IMPLEMENTATION_LABELS[impl][0]} material {mat.name!r}")
         return {'FINISHED'}
 
 
@@ -77,6 +81,7 @@ def _tree_for_adding(context):
 
 class CTLAB_OT_add_node_group(bpy.types.Operator):
     """Add the Cook-Torrance Lab node group (the model as shader nodes) to the node tree"""
+
     bl_idname = "ctlab.add_node_group"
     bl_label = "Cook-Torrance Lab"
     bl_options = {'REGISTER', 'UNDO'}
@@ -89,7 +94,7 @@ class CTLAB_OT_add_node_group(bpy.types.Operator):
         tree = _tree_for_adding(context)
         node = model_node.new_node(tree, "nodes")
         model_node.set_option(node, "ibl", "split_sum")
-        model_node.set_option(node, "light_transport", "scene")    # an artist's material
+        model_node.set_option(node, "light_transport", "scene")  # an artist's material
         space = getattr(context, "space_data", None)
         if hasattr(space, "cursor_location"):
             node.location = space.cursor_location
@@ -109,12 +114,18 @@ class CTLAB_OT_add_node_group(bpy.types.Operator):
 class CTLAB_OT_add_texture(bpy.types.Operator):
     """Wire an image texture into the active material's Cook-Torrance albedo, or a normal map
     into its normal"""
+
     bl_idname = "ctlab.add_texture"
     bl_label = "Add Texture"
     bl_options = {'REGISTER', 'UNDO'}
 
-    slot: EnumProperty(name="Input", items=(("albedo", "Albedo", "A colour texture"),
-                                            ("normal", "Normal Map", "A tangent-space normal map")))
+    slot: EnumProperty(
+        name="Input",
+        items=(
+            ("albedo", "Albedo", "A colour texture"),
+            ("normal", "Normal Map", "A tangent-space normal map"),
+        ),
+    )
 
     @classmethod
     def poll(cls, context):
@@ -124,7 +135,10 @@ class CTLAB_OT_add_texture(bpy.types.Operator):
         mat = _active_material(context)
         tree, node = mat.node_tree, model_node.find(mat)
         tex = tree.nodes.new("ShaderNodeTexImage")
-        tex.location = (node.location.x - 600, node.location.y - (300 if self.slot == "normal" else 0))
+        tex.location = (
+            node.location.x - 600,
+            node.location.y - (300 if self.slot == "normal" else 0),
+        )
         if self.slot == "albedo":
             tree.links.new(tex.outputs["Color"], model_node.surface_input(node, "albedo"))
         else:
@@ -139,6 +153,7 @@ class CTLAB_OT_add_texture(bpy.types.Operator):
 class CTLAB_OT_switch_implementation(bpy.types.Operator):
     """Carry the active material's Cook-Torrance node over to the other implementation,
     keeping its inputs, links and switches"""
+
     bl_idname = "ctlab.switch_implementation"
     bl_label = "Switch Implementation"
     bl_options = {'REGISTER', 'UNDO'}
@@ -163,10 +178,12 @@ class CTLAB_OT_switch_implementation(bpy.types.Operator):
             return {'CANCELLED'}
         if self.target == "osl":
             context.scene.cycles.shading_system = True
-        note = " (reference indirect light became split-sum)" if was_reference and \
-            self.target == "nodes" else ""
-        self.report({'INFO'}, f"{mat.name}: now the {IMPLEMENTATION_LABELS[self.target][0]}"
-                              + note)
+        note = (
+            " (reference indirect light became split-sum)"
+            if was_reference and self.target == "nodes"
+            else ""
+        )
+        self.report({'INFO'}, f"{mat.name}: now the {IMPLEMENTATION_LABELS[self.target][0]}" + note)
         return {'FINISHED'}
 
 
@@ -216,21 +233,23 @@ class _Convert:
 class CTLAB_OT_convert_to_cook_torrance(_Convert, bpy.types.Operator):
     """Replace Principled BSDF by the Cook-Torrance model (Base Color -> albedo, Roughness ->
     1 - smoothness, Metallic, Normal; textures stay wired); reports what cannot be mapped"""
+
     bl_idname = "ctlab.convert_to_cook_torrance"
     bl_label = "Principled to Cook-Torrance"
 
     scope: EnumProperty(name="Materials", items=_SCOPE_ITEMS, default="ACTIVE")
-    implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS,
-                                 default="PREFERENCES")
+    implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS, default="PREFERENCES")
 
     def convert(self, context, mat):
         from ...blender.convert import principled_to_model
+
         return principled_to_model(mat, context.scene, _implementation(self.implementation))
 
 
 class CTLAB_OT_convert_to_principled(_Convert, bpy.types.Operator):
     """Replace the Cook-Torrance model by a Principled BSDF (albedo -> Base Color, 1 -
     smoothness -> Roughness, Metallic, Normal; textures stay wired)"""
+
     bl_idname = "ctlab.convert_to_principled"
     bl_label = "Cook-Torrance to Principled"
 
@@ -238,11 +257,13 @@ class CTLAB_OT_convert_to_principled(_Convert, bpy.types.Operator):
 
     def convert(self, context, mat):
         from ...blender.convert import model_to_principled
+
         return model_to_principled(mat)
 
 
 class CTLAB_OT_set_view_all(bpy.types.Operator):
     """Show the same view (the lit result or one term) on every Cook-Torrance material"""
+
     bl_idname = "ctlab.set_view_all"
     bl_label = "Set View on All"
     bl_options = {'REGISTER', 'UNDO'}

@@ -5,8 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import bpy
-from bpy.props import (EnumProperty, FloatProperty, FloatVectorProperty, IntProperty,
-                       StringProperty)
+from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ...blender import light_sync
 from ...blender.scene_builder import build_matrix, environment_files
@@ -19,30 +18,56 @@ from .common import _DEFAULTS, _IBL_ITEMS, _SHADER_ITEMS, _default_hdri, _progre
 # ----------------------------------------------------------------------------------------
 # The sphere matrix and the environment bake
 
+
 class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
     """Build a metallic x smoothness matrix of spheres lit by an HDRI and a Sun.
     Rebuilding replaces only the objects this operator made"""
+
     bl_idname = "ctlab.build_sphere_matrix"
     bl_label = "Build Sphere Matrix"
     bl_options = {'REGISTER', 'UNDO'}
 
     rows: IntProperty(name="Rows (smoothness)", default=_DEFAULTS.rows, min=1, max=MAX_GRID)
     cols: IntProperty(name="Columns (metallic)", default=_DEFAULTS.cols, min=1, max=MAX_GRID)
-    spacing: FloatProperty(name="Spacing", default=_DEFAULTS.spacing, min=0.85, max=10,
-                           unit='LENGTH', description="Distance between sphere centres")
-    albedo: FloatVectorProperty(name="Albedo", subtype='COLOR', size=3, min=0, max=1,
-                                default=MATRIX_ALBEDO)
-    hdri: StringProperty(name="HDRI", subtype='FILE_PATH', default="",
-                         description="Equirectangular HDRI; empty: the preferences' default "
-                                     "HDRI, else Blender's bundled forest.exr")
+    spacing: FloatProperty(
+        name="Spacing",
+        default=_DEFAULTS.spacing,
+        min=0.85,
+        max=10,
+        unit='LENGTH',
+        description="Distance between sphere centres",
+    )
+    albedo: FloatVectorProperty(
+        name="Albedo", subtype='COLOR', size=3, min=0, max=1, default=MATRIX_ALBEDO
+    )
+    hdri: StringProperty(
+        name="HDRI",
+        subtype='FILE_PATH',
+        default="",
+        description="Equirectangular HDRI; empty: the preferences' default "
+        "HDRI, else Blender's bundled forest.exr",
+    )
     hdri_strength: FloatProperty(name="HDRI Strength", default=1.0, min=0, soft_max=10)
-    hdri_rotation: FloatProperty(name="HDRI Rotation", default=0.0, subtype='ANGLE',
-                                 description="Rotation of the world about Z")
-    sun_direction: FloatVectorProperty(name="Sun Direction", subtype='DIRECTION', size=3,
-                                       default=_DEFAULTS.sun_to_light,
-                                       description="Direction toward the Sun")
-    sun_strength: FloatProperty(name="Sun Strength", default=_DEFAULTS.sun_strength, min=0,
-                                soft_max=20, description="Sun irradiance (W/m²)")
+    hdri_rotation: FloatProperty(
+        name="HDRI Rotation",
+        default=0.0,
+        subtype='ANGLE',
+        description="Rotation of the world about Z",
+    )
+    sun_direction: FloatVectorProperty(
+        name="Sun Direction",
+        subtype='DIRECTION',
+        size=3,
+        default=_DEFAULTS.sun_to_light,
+        description="Direction toward the Sun",
+    )
+    sun_strength: FloatProperty(
+        name="Sun Strength",
+        default=_DEFAULTS.sun_strength,
+        min=0,
+        soft_max=20,
+        description="Sun irradiance (W/m²)",
+    )
     shader: EnumProperty(name="Shader", default="osl", items=_SHADER_ITEMS)
     view: EnumProperty(name="View", default="full", items=VIEW_ITEMS)
     ibl: EnumProperty(name="Indirect Light", default=IBL_MODES[0], items=_IBL_ITEMS)
@@ -52,13 +77,20 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
         ibl = indirect_light(self.shader, self.ibl) if self.shader != "principled" else self.ibl
         try:
             settings = MatrixSettings(
-                rows=self.rows, cols=self.cols, spacing=self.spacing, albedo=tuple(self.albedo),
+                rows=self.rows,
+                cols=self.cols,
+                spacing=self.spacing,
+                albedo=tuple(self.albedo),
                 hdri=bpy.path.abspath(self.hdri) if self.hdri else _default_hdri(),
                 hdri_strength=self.hdri_strength,
                 hdri_rotation=self.hdri_rotation,
-                sun_to_light=tuple(self.sun_direction), sun_strength=self.sun_strength,
-                shader=self.shader, width=self.resolution, height=self.resolution,
-                model=ModelOptions(view=self.view, ibl=ibl))
+                sun_to_light=tuple(self.sun_direction),
+                sun_strength=self.sun_strength,
+                shader=self.shader,
+                width=self.resolution,
+                height=self.resolution,
+                model=ModelOptions(view=self.view, ibl=ibl),
+            )
             with _progress(context) as progress:
                 files = environment_files(settings, progress)
             build_matrix(context.scene, settings, files)
@@ -67,7 +99,7 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
             return {'CANCELLED'}
         scene = context.scene
         scene.render.engine = 'CYCLES'
-        scene.cycles.shading_system = (self.shader == "osl")
+        scene.cycles.shading_system = self.shader == "osl"
         self.report({'INFO'}, f"Built a {self.rows}x{self.cols} sphere matrix")
         return {'FINISHED'}
 
@@ -78,20 +110,32 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
 class CTLAB_OT_bake_environment(bpy.types.Operator):
     """Bake the split-sum files of an HDRI (pre-filtered specular levels, irradiance and the
     DFG tables) into the cache, once per image content"""
+
     bl_idname = "ctlab.bake_environment"
     bl_label = "Bake Environment"
     bl_options = {'REGISTER'}
 
-    filepath: StringProperty(name="HDRI", subtype='FILE_PATH', default="",
-                             description="Equirectangular HDRI; empty: the world's Environment "
-                                         "Texture, else Blender's bundled forest.exr")
+    filepath: StringProperty(
+        name="HDRI",
+        subtype='FILE_PATH',
+        default="",
+        description="Equirectangular HDRI; empty: the world's Environment "
+        "Texture, else Blender's bundled forest.exr",
+    )
 
     def execute(self, context):
         from ...blender.paths import bundled_hdri
         from ...core import ibl_bake
-        path = (bpy.path.abspath(self.filepath) if self.filepath
-                else light_sync.world_hdri_path(context.scene)) or _default_hdri() \
+
+        path = (
+            (
+                bpy.path.abspath(self.filepath)
+                if self.filepath
+                else light_sync.world_hdri_path(context.scene)
+            )
+            or _default_hdri()
             or str(bundled_hdri("forest"))
+        )
         warnings = []
         try:
             with _progress(context) as progress:
