@@ -15,7 +15,6 @@ files the manifest does not list, is left alone with the reason in the error."""
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -73,17 +72,9 @@ def _unusable(path: Path, why: str) -> UserError:
 MANIFEST = "manifest.json"
 
 
-def _digest(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _manifest(folder: Path) -> dict:
     return {
-        p.name: {"bytes": p.stat().st_size, "sha256": _digest(p)}
+        p.name: {"bytes": p.stat().st_size, "sha256": files.sha256(p)}
         for p in sorted(Path(folder).iterdir())
         if p.is_file() and p.name != MANIFEST
     }

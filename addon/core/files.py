@@ -48,7 +48,20 @@ def live_temporaries() -> list:
     return list(_live)
 
 
-def _alive(pid: int) -> bool:
+def sha256(path: Path) -> str:
+    """The SHA-256 of a file's content (hex): the one content hash of the project (cache
+    manifests, the plot's and the task graph's ownership records, HDRI keys)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def process_alive(pid: int) -> bool:
+    """Whether a process of this machine runs (another user's counts as running)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -68,7 +81,7 @@ def remove_stale_temporaries(folder: Path) -> int:
         return 0
     for entry in entries:
         m = _STAGING.match(entry.name)
-        if m and int(m[1]) != os.getpid() and not _alive(int(m[1])):
+        if m and int(m[1]) != os.getpid() and not process_alive(int(m[1])):
             if entry.is_dir():
                 shutil.rmtree(entry, ignore_errors=True)
             else:

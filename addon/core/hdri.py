@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import functools
-import hashlib
 from pathlib import Path
 
 import numpy as np
 
 from .errors import UserError
-from .files import atomic_path, public
+from .files import atomic_path, public, sha256
 
 
 def oiio():
@@ -28,11 +27,7 @@ def oiio():
 
 def file_hash(path: Path) -> str:
     """Content hash of a file (the cache key of everything derived from it)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()[:24]
+    return sha256(path)[:24]
 
 
 def read_hdri(path, repair: bool = False):

@@ -34,7 +34,7 @@ import socket
 from pathlib import Path
 
 from .errors import UserError
-from .files import write_json
+from .files import process_alive, sha256, write_json
 
 FORMAT = "ctlab-plan"
 PLAN_VERSION = 1
@@ -58,14 +58,6 @@ def content_id(prefix: str, content: dict) -> str:
     prefix (a folder name) only makes ids readable."""
     slug = re.sub(r"[^A-Za-z0-9_]+", "_", prefix).strip("_") or "task"
     return f"{slug}-{hashlib.sha256(canonical(content).encode()).hexdigest()[:12]}"
-
-
-def file_digest(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def render_task(folder: str, content: dict, outputs: tuple) -> dict:
@@ -201,7 +193,7 @@ def output_manifest(job_dir: Path, task: dict) -> dict:
     return {
         rel: {
             "bytes": (Path(job_dir) / rel).stat().st_size,
-            "sha256": file_digest(Path(job_dir) / rel),
+            "sha256": sha256(Path(job_dir) / rel),
         }
         for rel in task["outputs"]
     }
@@ -240,7 +232,7 @@ def problem(job_dir: Path, task: dict) -> str | None:
         if not path.is_file():
             return f"lost its output {rel}"
         want = recorded.get(rel) or {}
-        if path.stat().st_size != want.get("bytes") or file_digest(path) != want.get("sha256"):
+        if path.stat().st_size != want.get("bytes") or sha256(path) != want.get("sha256"):
             return f"has a corrupt output {rel} (changed since the task finished)"
     return None
 
@@ -283,7 +275,7 @@ def merge_lock(job_dir: Path):
                 pid = int(pid)
             except (OSError, ValueError):
                 host, pid = "?", -1
-            if host == socket.gethostname() and pid > 0 and not _alive(pid):
+            if host == socket.gethostname() and pid > 0 and not process_alive(pid):
                 with contextlib.suppress(OSError):
                     path.unlink()
                 continue
@@ -300,16 +292,6 @@ def merge_lock(job_dir: Path):
     finally:
         with contextlib.suppress(OSError):
             path.unlink()
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True
-    return True
 
 
 # ----------------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ import numpy as np
 from . import brdf_plot as bp
 from .brdf_plot import luminance, slice_name
 from .errors import UserError
-from .files import atomic_paths, json_text
+from .files import atomic_paths, json_text, sha256
 from .hdri import write_float_exr
 from . import figures
 from .svg import SvgCanvas
@@ -194,7 +194,7 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None, wa
             where[n].write_text(text, encoding="utf-8")
         for n, canvas in pngs.items():
             canvas.save_png(where[n])
-        data["sha256"] = {n: _digest(where[n]) for n in names if n != "plot.json"}
+        data["sha256"] = {n: sha256(where[n]) for n in names if n != "plot.json"}
         where["plot.json"].write_text(json_text(data), encoding="utf-8")
     for name in earlier:  # an earlier plot's variants and views
         (out / name).unlink(missing_ok=True)
@@ -204,16 +204,6 @@ def write_plot(out: Path, settings, results: dict, extra: dict | None = None, wa
             f"(not verifiably written by ctlab: {', '.join(sorted(unverified)[:3])})"
         )
     return data
-
-
-def _digest(path: Path) -> str:
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _earlier_files(out: Path, keep: set) -> tuple:
@@ -242,5 +232,5 @@ def _earlier_files(out: Path, keep: set) -> tuple:
         except OSError:
             continue
         recorded = hashes.get(f)
-        (ours if isinstance(recorded, str) and recorded == _digest(out / f) else others).add(f)
+        (ours if isinstance(recorded, str) and recorded == sha256(out / f) else others).add(f)
     return ours, others
