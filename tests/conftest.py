@@ -20,3 +20,22 @@ sys.path.insert(0, str(ROOT / "tests"))
 _CACHE = tempfile.mkdtemp(prefix="ctlab-test-cache-")
 os.environ.setdefault("CTLAB_CACHE", _CACHE)
 os.environ.setdefault("XDG_CACHE_HOME", _CACHE)
+
+
+# Blender as a module can hang when the process exits: in the fresh-clone CI on bpy 4.5.15 the
+# suite printed its summary, then a C++ static's destructor in bpy waited for ever on a
+# condition variable (gdb: GlobalState::~GlobalState in __run_exit_handlers, an EEVEE GPU
+# worker thread still parked). So a run that loaded bpy leaves at once, with pytest's own exit
+# status, once pytest is done (the summary and the cache are written by then).
+_EXIT = {"status": 0}
+
+
+def pytest_sessionfinish(session, exitstatus):
+    _EXIT["status"] = int(exitstatus)
+
+
+def pytest_unconfigure(config):
+    if "bpy" in sys.modules:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(_EXIT["status"])
