@@ -94,6 +94,23 @@ class _Builder:
                 self.closure_names.append(name)
         self._depends = {}
 
+    def emission(self, colour):
+        """An Emission closure of ``colour`` at strength 1."""
+        node = self.new("ShaderNodeEmission")
+        self.link(colour, node.inputs["Color"])
+        node.inputs["Strength"].default_value = 1.0
+        return node.outputs["Emission"]
+
+    def mix_shader(self, fac, first, second, label):
+        """A Mix Shader of ``first`` (None: no closure) and ``second`` by ``fac``."""
+        node = self.new("ShaderNodeMixShader")
+        node.label = label
+        self.link(fac, node.inputs["Fac"])
+        if first is not None:
+            self.link(first, node.inputs[1])
+        self.link(second, node.inputs[2])
+        return node.outputs["Shader"]
+
     def depends(self, tree, names) -> bool:
         """Whether an expression refers, directly or not, to one of the named nodes."""
         if tree[0] == "call":
@@ -535,20 +552,7 @@ def _closures(b: _Builder, views: dict, view_on: list, rest, frame: str = "views
     this consumes."""
     b.current_frame = frame
 
-    def emit(colour):
-        node = b.new("ShaderNodeEmission")
-        b.link(colour, node.inputs["Color"])
-        node.inputs["Strength"].default_value = 1.0
-        return node.outputs["Emission"]
-
-    def mix(fac, first, second, label):
-        node = b.new("ShaderNodeMixShader")
-        node.label = label
-        b.link(fac, node.inputs["Fac"])
-        if first is not None:
-            b.link(first, node.inputs[1])
-        b.link(second, node.inputs[2])
-        return node.outputs["Shader"]
+    emit, mix = b.emission, b.mix_shader
 
     def weighted(colour, weight):
         return colour if weight is None else b.call("vec.SCALE", [colour, weight])
@@ -633,19 +637,7 @@ def build_chain_group(data: dict, name: str) -> bpy.types.ShaderNodeTree:
         "of Mix Shader nodes over the levels (two are read)"
     )
 
-    def emit(colour):
-        node = b.new("ShaderNodeEmission")
-        b.link(colour, node.inputs["Color"])
-        node.inputs["Strength"].default_value = 1.0
-        return node.outputs["Emission"]
-
-    def mix(fac, first, second, label):
-        node = b.new("ShaderNodeMixShader")
-        node.label = label
-        b.link(fac, node.inputs["Fac"])
-        b.link(first, node.inputs[1])
-        b.link(second, node.inputs[2])
-        return node.outputs["Shader"]
+    emit, mix = b.emission, b.mix_shader
 
     sockets = [b.socket("in." + label) for label, _ in CHAIN_INPUTS]
     out = group.nodes.new("NodeGroupOutput")
