@@ -4,7 +4,7 @@ files — schema-checked, never blocking, never replaced or removed unless ctlab
 
 Pure core (core/jobgraph.py), no Blender: the checks, and the writes a task makes after its
 render (its outputs staged and renamed, then its marker), on folders built here. Each test
-failed on the code before issue 35 (noted per test); the Hypothesis layer feeds any JSON, at
+failed on the code before this layer (noted per test); the Hypothesis layer feeds any JSON, at
 any depth, as a plan or a marker, and any mix of files, folders, pipes and links where a task
 writes. A mutation check: with ``plan_problems`` returning [] the plan properties fail (a
 KeyError or a folder outside the job), and with ``owned_file`` accepting links the job-folder
