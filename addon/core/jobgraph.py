@@ -530,6 +530,16 @@ def owned_file(path: Path, what: str, ours=None) -> None:
         )
 
 
+def check_folders(job_dir: Path, folders, what: str) -> None:
+    """Each folder (relative to the job folder) and each one on the way to it is absent or a
+    real folder (owned_folder): nothing written below it can land outside the job folder."""
+    for rel in folders:
+        where = Path(job_dir)
+        for name in rel.split("/"):
+            where = where / name
+            owned_folder(where, what)
+
+
 def check_task_paths(job_dir: Path, task: dict) -> None:
     """Before a render task writes: its folder lies inside the job folder through real
     folders only (no link leads elsewhere), its outputs' places hold regular files or
@@ -538,10 +548,7 @@ def check_task_paths(job_dir: Path, task: dict) -> None:
     job_dir = Path(job_dir)
     if not safe_folder(task.get("folder")):
         raise UserError(f"task {task.get('id')}'s folder leaves the job folder; plan again")
-    where = job_dir
-    for name in task["folder"].split("/"):
-        where = where / name
-        owned_folder(where, f"task {task['id']}'s outputs")
+    check_folders(job_dir, [task["folder"]], f"task {task['id']}'s outputs")
     for rel in task["outputs"]:
         owned_file(job_dir / rel, f"task {task['id']}'s output")
     owned_folder(job_dir / TASKS_DIR, "its task records")
@@ -563,11 +570,19 @@ def open_log(job_dir: Path, task: dict):
     return log
 
 
-def _is_log(path: Path) -> bool:
-    try:
-        return read_bytes(path, "log").startswith(LOG_MARK.encode())
-    except UserError:
-        return False
+def _starts_with(mark: str):
+    """Whether a file ctlab wrote begins with ``mark`` (read without blocking)."""
+
+    def test(path: Path) -> bool:
+        try:
+            return read_bytes(path, "file").startswith(mark.encode())
+        except UserError:
+            return False
+
+    return test
+
+
+_is_log = _starts_with(LOG_MARK)
 
 
 # ----------------------------------------------------------------------------------------
@@ -720,13 +735,6 @@ def _is_ctlab_link(path: Path) -> bool:
         return False
 
 
-def _is_job_type(path: Path) -> bool:
-    try:
-        return read_bytes(path, "job type").startswith(FLAMENCO_MARK.encode())
-    except UserError:
-        return False
-
-
 def check_bundles(job_dir: Path, job: str, openjd: bool, flamenco: bool) -> None:
     """Before ``ctlab plan`` writes anything: the bundles' folders are absent or real folders,
     and every file they replace is one ctlab wrote (a template, a job type, the RepoRoot
@@ -747,7 +755,7 @@ def check_bundles(job_dir: Path, job: str, openjd: bool, flamenco: bool) -> None
     if flamenco:
         folder = job_dir / FLAMENCO_DIR
         owned_folder(folder, "the Flamenco job type")
-        owned_file(folder / f"ctlab-{job}.js", "the Flamenco job type", _is_job_type)
+        owned_file(folder / f"ctlab-{job}.js", "the Flamenco job type", _starts_with(FLAMENCO_MARK))
 
 
 def write_openjd(job_dir: Path, plan: dict, repo_root: Path, python: str) -> Path:

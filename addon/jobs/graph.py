@@ -11,7 +11,6 @@ settings, is refused in one line rather than rendered into the wrong folder.
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -275,7 +274,24 @@ def run_task(job_dir: Path, task_id: str, events=None, verbose: bool = False) ->
 
 
 def _scene(job_dir: Path, folder: str) -> dict:
-    return json.loads((Path(job_dir) / folder / "scene.json").read_text(encoding="utf-8"))
+    """A render folder's scene.json, read as input (jobgraph.read_json: a regular file, not
+    blocking, bounded)."""
+    path = Path(job_dir) / folder / "scene.json"
+    scene = jobgraph.read_json(path, "render description", jobgraph.MAX_PLAN_BYTES)
+    if not isinstance(scene, dict) or not isinstance(scene.get("render_seconds"), (int, float)):
+        raise UserError(f"{path} is not a render's description; re-run its task")
+    return scene
+
+
+def _merge_folders(plan: dict, base: MatrixSettings) -> list:
+    """The folders a merge writes in, relative to the job folder: the comparisons, the BRDF
+    plots (matrix), each parity run's comparison."""
+    if plan["job"] == "matrix":
+        return [c for c, *_ in pipeline.MATRIX_COMPARISONS] + [
+            f"plots/{name}" for name, *_ in pipeline.report_plots(base)
+        ]
+    runs = dict.fromkeys(t["folder"].split("/")[0] for t in jobgraph.render_tasks(plan))
+    return [f"{name}/compare" for name in runs]
 
 
 def merge(job_dir: Path, events=None, verbose: bool = False, steps: int | None = None) -> dict:
@@ -293,6 +309,7 @@ def merge(job_dir: Path, events=None, verbose: bool = False, steps: int | None =
     jobgraph.check_complete(job_dir, plan)  # a refusal writes nothing: before the lock
     base = settings_from_dict(plan["spec"]["base"])
     pipeline.refuse_job_outputs(base, job_dir, [], plan_merge_outputs(plan))
+    jobgraph.check_folders(job_dir, _merge_folders(plan, base), "the merge's outputs")
     check_writable(job_dir)
     with jobgraph.merge_lock(job_dir):
         jobgraph.check_complete(job_dir, plan)

@@ -9,7 +9,6 @@ tests/unit/test_job_folder.py."""
 
 import json
 import os
-import signal
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ import pytest
 from addon.core import jobgraph
 from addon.core.hdri import write_float_exr
 from addon.jobs import cli
+from test_hardening2 import _one_line as one_line
 
 TINY = ["--grid", "1x1", "--size", "32", "--samples", "1"]
 
@@ -33,6 +33,7 @@ CASES = {
     "tasks-not-folder": "test_tasks_as_a_file_is_one_line_for_task_and_merge",
     "merge-refused-writes-nothing": "test_a_refused_merge_writes_nothing",
     "merge-unwritable": "test_a_merge_that_cannot_take_its_lock_is_one_line",
+    "merge-folder-link": "test_a_link_where_the_merge_writes_is_refused",
     "hdri-replaced-after-plan": "test_an_hdri_replaced_after_planning_is_refused",
     "hdri-changed-after-plan": "test_an_hdri_changed_after_planning_is_named",
     "workers-unicode-digit": "test_workers_takes_ascii_digits_only",
@@ -41,17 +42,6 @@ CASES = {
 
 def test_each_documented_case_names_a_test_here():
     assert all(callable(globals().get(name)) for name in CASES.values()), CASES
-
-
-def one_line(capsys, code, expect=None) -> str:
-    """Exit 2, exactly one error line, no traceback."""
-    err = capsys.readouterr().err
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert code == cli.EXIT_BAD_INPUT, err
-    assert len(lines) == 1 and lines[0].startswith("ctlab: error: "), err
-    if expect:
-        assert expect in lines[0], lines[0]
-    return lines[0]
 
 
 def snapshot(root: Path) -> dict:
@@ -86,20 +76,6 @@ def edit(job: Path, change) -> None:
     data = json.loads((job / "plan.json").read_text())
     change(data)
     (job / "plan.json").write_text(json.dumps(data))
-
-
-@pytest.fixture
-def alarm():
-    """A read that could block (a FIFO) fails the test instead of hanging it."""
-
-    def on_alarm(*_):
-        raise AssertionError("blocked on a named pipe")
-
-    old = signal.signal(signal.SIGALRM, on_alarm)
-    signal.alarm(60)
-    yield
-    signal.alarm(0)
-    signal.signal(signal.SIGALRM, old)
 
 
 # ----------------------------------------------------------------------------------------
@@ -280,11 +256,7 @@ def test_a_merge_that_cannot_take_its_lock_is_one_line(tmp_path, capsys, monkeyp
     merge.lock. The tests run as root (who may write anywhere), so the lock's open is made
     to fail as it does for a user; the tasks are marked done over placeholders."""
     job = tmp_path / "job"
-    for t in jobgraph.render_tasks(plan(job)):
-        for rel in t["outputs"]:
-            (job / rel).parent.mkdir(parents=True, exist_ok=True)
-            (job / rel).write_text(rel)
-        jobgraph.mark_done(job, t)
+    fake_done(job)
     real = os.open
 
     def refuse(path, flags, *a, **kw):
@@ -295,6 +267,32 @@ def test_a_merge_that_cannot_take_its_lock_is_one_line(tmp_path, capsys, monkeyp
     monkeypatch.setattr(os, "open", refuse)
     before = snapshot(tmp_path)
     one_line(capsys, cli.main(["merge", str(job)]), "merge.lock: permission denied")
+    assert snapshot(tmp_path) == before
+
+
+def fake_done(job: Path) -> None:
+    """A planned job whose render tasks are marked done over placeholder outputs (the
+    merge's checks read only files; comparing them would fail later)."""
+    for t in jobgraph.render_tasks(plan(job)):
+        for rel in t["outputs"]:
+            (job / rel).parent.mkdir(parents=True, exist_ok=True)
+            (job / rel).write_text(rel)
+        jobgraph.mark_done(job, t)
+
+
+@pytest.mark.parametrize("where", ["compare", "plots"])
+def test_a_link_where_the_merge_writes_is_refused(tmp_path, capsys, where):
+    """A link in the job folder where the merge writes (a comparison's folder, the plots')
+    led its metrics.json and diff.png into the user's folder, replacing their files there;
+    now every folder the merge writes in is checked first."""
+    job = tmp_path / "job"
+    fake_done(job)
+    users = tmp_path / "users"
+    users.mkdir()
+    (users / "metrics.json").write_bytes(b"the user's file")
+    (job / where).symlink_to(users)
+    before = snapshot(tmp_path)
+    one_line(capsys, cli.main(["merge", str(job)]), f"{job / where} is a link where ctlab keeps")
     assert snapshot(tmp_path) == before
 
 

@@ -12,7 +12,6 @@ property fails (the user's file behind a link is replaced)."""
 
 import json
 import os
-import signal
 import stat
 from pathlib import Path
 
@@ -52,20 +51,6 @@ def finish(job_dir: Path, task: dict) -> None:
     for rel in task["outputs"]:
         files.write_text(job_dir / rel, f"{task['id']} {rel}")
     jobgraph.mark_done(job_dir, task)
-
-
-@pytest.fixture
-def alarm():
-    """A read that could block (a FIFO) fails the test instead of hanging it."""
-
-    def on_alarm(*_):
-        raise AssertionError("blocked on a named pipe")
-
-    old = signal.signal(signal.SIGALRM, on_alarm)
-    signal.alarm(20)
-    yield
-    signal.alarm(0)
-    signal.signal(signal.SIGALRM, old)
 
 
 # ----------------------------------------------------------------------------------------
