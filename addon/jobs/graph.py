@@ -203,7 +203,7 @@ def _checked(job_dir: Path, plan: dict, task: dict) -> MatrixSettings:
     pipeline.refuse_job_outputs). An HDRI whose content changed since planning is named."""
     renders = renders_of(plan["job"], plan["spec"])
     s = renders.get(task["folder"])
-    content = s and task_content(s, plan["spec"]["samples"], environment())
+    content = None if s is None else task_content(s, plan["spec"]["samples"], environment())
     if s is not None and content["inputs"] != task.get("inputs", content["inputs"]):
         raise UserError(
             f"HDRI {resolve_hdri(s.hdri)} changed since the job was planned (its content "
