@@ -555,6 +555,13 @@ def check_task_paths(job_dir: Path, task: dict) -> None:
     owned_file(marker_path(job_dir, task), "a task's completion marker", is_marker)
 
 
+def check_logs(job_dir: Path, tasks) -> None:
+    """Before any worker starts: every task's log place is free or holds ctlab's log."""
+    owned_folder(Path(job_dir) / TASKS_DIR, "its task records")
+    for task in tasks:
+        owned_file(log_path(job_dir, task), "a task's log", _is_log)
+
+
 def open_log(job_dir: Path, task: dict):
     """A worker's log file, opened for writing without following a link or blocking; an
     earlier log is replaced only when ctlab wrote it (its first line is LOG_MARK)."""

@@ -484,7 +484,7 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
     pending = [t for t in renders if not jobgraph.done(job_dir, t)]
     running, failed, finished = {}, [], len(renders) - len(pending)
     logs = job_dir / jobgraph.TASKS_DIR
-    jobgraph.owned_folder(logs, "its task records")
+    jobgraph.check_logs(job_dir, pending)
     with jobgraph.os_errors(logs):
         logs.mkdir(exist_ok=True)
     env = {k: v for k, v in os.environ.items() if k != "CTLAB_JSON_EVENTS"}

@@ -309,6 +309,8 @@ def test_a_log_ctlab_did_not_write_is_left(tmp_path):
     jobgraph.log_path(folder, task).symlink_to(tmp_path / "user.txt")
     with pytest.raises(UserError, match="is a link where ctlab writes a task's log"):
         jobgraph.open_log(folder, task)
+    with pytest.raises(UserError, match="is a link where ctlab writes a task's log"):
+        jobgraph.check_logs(folder, jobgraph.render_tasks(p))  # before any worker starts
     jobgraph.log_path(folder, task).unlink()
     jobgraph.log_path(folder, task).write_text("my notes")
     with pytest.raises(UserError, match="a file ctlab did not write"):
