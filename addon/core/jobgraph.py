@@ -53,7 +53,7 @@ LOG_MARK = "# ctlab task log"
 # size and nesting are bounded before they are parsed or walked.
 MAX_PLAN_BYTES = 64 << 20
 MAX_MARKER_BYTES = 1 << 20
-MAX_DEPTH = 64  # the deepest plan ctlab writes is 6 levels (tasks/content/settings/lights)
+MAX_DEPTH = 64  # a plan ctlab writes nests 6 levels deep (8 with lights)
 MAX_TASKS = 4096
 _ID = re.compile(r"[A-Za-z0-9_]{1,80}-[0-9a-f]{12}", re.ASCII)
 _HEX64 = re.compile(r"[0-9a-f]{64}", re.ASCII)
