@@ -10,9 +10,12 @@ chi2.py), and a private cache. No Blender here: the tiers are folders,
 render/ and slow/ take Blender's fixtures from blender_fixtures.py."""
 
 import os
+import signal
 import sys
 import tempfile
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -39,3 +42,18 @@ def pytest_unconfigure(config):
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(_EXIT["status"])
+
+
+@pytest.fixture
+def alarm():
+    """A check that could block (a read of a named pipe) fails the test instead of hanging
+    it: SIGALRM after 60 s raises in the blocked call."""
+
+    def on_alarm(*_):
+        raise AssertionError("blocked: the command hung on its input")
+
+    old = signal.signal(signal.SIGALRM, on_alarm)
+    signal.alarm(60)
+    yield
+    signal.alarm(0)
+    signal.signal(signal.SIGALRM, old)

@@ -705,7 +705,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     m.add_argument(
         "--workers",
-        type=int,
+        type=ascii_int,
         default=1,
         help="render tasks as this many local processes (default 1: in this one)",
     )

@@ -11,7 +11,6 @@ settings, is refused in one line rather than rendered into the wrong folder.
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -29,6 +28,7 @@ from ..core.compare import compare, read_image
 from ..core.errors import Cancelled, UserError
 from ..core.files import PACKAGE_ROOT, check_writable
 from ..core.hdri import file_hash, load_hdri
+from ..core.paths import input_file
 from ..core.report import write_parity_report, write_report
 from ..core.settings import MatrixSettings, settings_from_dict, settings_to_dict
 
@@ -70,31 +70,41 @@ def matrix_labels() -> dict:
 
 
 def renders_of(job: str, spec: dict) -> dict:
-    """{folder: settings} of a job's render tasks, in the order the job runs them."""
-    base = settings_from_dict(spec["base"])
-    if job == "matrix":
-        return pipeline.matrix_settings(base)
-    if job == "parity":
+    """{folder: settings} of a job's render tasks, in the order the job runs them. A spec
+    whose values this version cannot build settings from (a plan edited by hand) is one
+    UserError line."""
+    if job not in JOBS:
+        raise UserError(f"unknown job {job!r} in the plan; this ctlab plans: {', '.join(JOBS)}")
+    try:
+        base = settings_from_dict(spec["base"])
+        if job == "matrix":
+            return pipeline.matrix_settings(base)
         out = {}
         for name, ct, pr in pipeline.parity_runs(
             base, [Path(h) for h in spec["hdris"]], spec.get("name")
         ):
             out[f"{name}/cook_torrance"], out[f"{name}/principled"] = ct, pr
         return out
-    raise UserError(f"unknown job {job!r} in the plan; this ctlab plans: {', '.join(JOBS)}")
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise UserError(
+            f"the plan's settings cannot be read by this ctlab ({type(exc).__name__}: "
+            f"{str(exc)[:80]}); plan the job again into an empty folder"
+        ) from None
 
 
 _HASHES: dict = {}
 
 
 def _hdri_hash(path: Path) -> str:
-    try:
-        st = path.stat()
-    except OSError:
-        raise UserError(
-            f"HDRI not found: {path} (the plan names it; on another machine it "
-            "must be at the same path, or plan the job there)"
-        ) from None
+    """The HDRI's content hash, through the path gate (a regular file, opened without
+    blocking: one replaced by a pipe or a folder after planning is refused, never read)."""
+    path = input_file(
+        path,
+        "HDRI",
+        missing=f"HDRI not found: {path} (the plan names it; on another machine it "
+        "must be at the same path, or plan the job there)",
+    )
+    st = path.stat()
     key = (str(path), st.st_size, st.st_mtime_ns)
     if key not in _HASHES:
         _HASHES[key] = file_hash(path)
@@ -154,12 +164,16 @@ def write_plan(
     """JOB/plan.json (with ``openjd`` JOB/openjd/template.json, with ``flamenco``
     JOB/flamenco/ctlab-<job>.js). ``replace``: the job
     run in one process takes the folder over, as it always wrote over its renders."""
-    # no input is an output of the job, and none of those is blocked or in the cache
+    # no input is an output of the job, and none of those is blocked or in the cache; the
+    # bundles' places hold nothing of a user's: refused before anything is written
     for folder, settings in renders_of(plan["job"], plan["spec"]).items():
         pipeline.refuse_job_outputs(settings, job_dir, [folder])
     pipeline.refuse_job_outputs(
         settings_from_dict(plan["spec"]["base"]), job_dir, [], plan_merge_outputs(plan)
     )
+    jobgraph.check_bundles(job_dir, plan["job"], openjd, flamenco)
+    if replace:  # only a plan ctlab wrote (a user's plan.json is refused, never removed)
+        jobgraph.owned_file(jobgraph.plan_path(job_dir), "the job's plan", _is_plan)
     check_writable(job_dir)
     if replace:
         jobgraph.plan_path(job_dir).unlink(missing_ok=True)
@@ -170,27 +184,41 @@ def write_plan(
         jobgraph.write_flamenco(Path(job_dir).resolve(), plan, PACKAGE_ROOT, sys.executable)
 
 
+def _is_plan(path: Path) -> bool:
+    try:
+        data = jobgraph.read_json(path, "plan", jobgraph.MAX_PLAN_BYTES)
+    except UserError:
+        return False
+    return isinstance(data, dict) and data.get("format") == jobgraph.FORMAT
+
+
 # ----------------------------------------------------------------------------------------
 # One task
 
 
 def _checked(job_dir: Path, plan: dict, task: dict) -> MatrixSettings:
-    """The task's settings rebuilt by this version; its id must come out the same."""
+    """The task's settings rebuilt by this version; its id must come out the same. Its
+    paths are gated again (a plan is input): its folder inside the job folder through real
+    folders, its outputs none of its inputs (jobgraph.check_task_paths,
+    pipeline.refuse_job_outputs). An HDRI whose content changed since planning is named."""
     renders = renders_of(plan["job"], plan["spec"])
     s = renders.get(task["folder"])
-    if (
-        s is None
-        or jobgraph.content_id(
-            task["folder"], task_content(s, plan["spec"]["samples"], environment())
+    content = None if s is None else task_content(s, plan["spec"]["samples"], environment())
+    if s is not None and content["inputs"] != task.get("inputs", content["inputs"]):
+        raise UserError(
+            f"HDRI {resolve_hdri(s.hdri)} changed since the job was planned (its content "
+            "hash differs); put the planned file back, or plan the job again into an "
+            "empty folder"
         )
-        != task["id"]
-    ):
+    if s is None or jobgraph.content_id(task["folder"], content) != task["id"]:
         raise UserError(
             f"task {task['id']} was planned by another version or with other "
             f"settings (ctlab {plan.get('environment', {}).get('ctlab')}, Blender "
             f"{plan.get('environment', {}).get('blender')}); plan the job again "
             "into an empty folder"
         )
+    jobgraph.check_task_paths(job_dir, task)
+    pipeline.refuse_job_outputs(s, job_dir, [task["folder"]])
     return s
 
 
@@ -246,7 +274,24 @@ def run_task(job_dir: Path, task_id: str, events=None, verbose: bool = False) ->
 
 
 def _scene(job_dir: Path, folder: str) -> dict:
-    return json.loads((Path(job_dir) / folder / "scene.json").read_text(encoding="utf-8"))
+    """A render folder's scene.json, read as input (jobgraph.read_json: a regular file, not
+    blocking, bounded)."""
+    path = Path(job_dir) / folder / "scene.json"
+    scene = jobgraph.read_json(path, "render description", jobgraph.MAX_PLAN_BYTES)
+    if not isinstance(scene, dict) or not isinstance(scene.get("render_seconds"), (int, float)):
+        raise UserError(f"{path} is not a render's description; re-run its task")
+    return scene
+
+
+def _merge_folders(plan: dict, base: MatrixSettings) -> list:
+    """The folders a merge writes in, relative to the job folder: the comparisons, the BRDF
+    plots (matrix), each parity run's comparison."""
+    if plan["job"] == "matrix":
+        return [c for c, *_ in pipeline.MATRIX_COMPARISONS] + [
+            f"plots/{name}" for name, *_ in pipeline.report_plots(base)
+        ]
+    runs = dict.fromkeys(t["folder"].split("/")[0] for t in jobgraph.render_tasks(plan))
+    return [f"{name}/compare" for name in runs]
 
 
 def merge(job_dir: Path, events=None, verbose: bool = False, steps: int | None = None) -> dict:
@@ -255,9 +300,19 @@ def merge(job_dir: Path, events=None, verbose: bool = False, steps: int | None =
     events = events or pipeline.Events()
     job_dir = Path(job_dir)
     plan = jobgraph.read_plan(job_dir)
+    planned = renders_of(plan["job"], plan["spec"])  # settings this version reads
+    if [t["folder"] for t in jobgraph.render_tasks(plan)] != list(planned):
+        raise UserError(
+            f"{jobgraph.plan_path(job_dir)}: its render tasks are not the {plan['job']} "
+            "job's; plan the job again into an empty folder"
+        )
+    jobgraph.check_complete(job_dir, plan)  # a refusal writes nothing: before the lock
+    base = settings_from_dict(plan["spec"]["base"])
+    pipeline.refuse_job_outputs(base, job_dir, [], plan_merge_outputs(plan))
+    jobgraph.check_folders(job_dir, _merge_folders(plan, base), "the merge's outputs")
+    check_writable(job_dir)
     with jobgraph.merge_lock(job_dir):
         jobgraph.check_complete(job_dir, plan)
-        base = settings_from_dict(plan["spec"]["base"])
         if plan["job"] == "matrix":
             return _merge_matrix(job_dir, plan, base, events, verbose, steps)
         return _merge_parity(job_dir, plan, events, steps)
@@ -429,7 +484,9 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
     pending = [t for t in renders if not jobgraph.done(job_dir, t)]
     running, failed, finished = {}, [], len(renders) - len(pending)
     logs = job_dir / jobgraph.TASKS_DIR
-    logs.mkdir(exist_ok=True)
+    jobgraph.check_logs(job_dir, pending)
+    with jobgraph.os_errors(logs):
+        logs.mkdir(exist_ok=True)
     env = {k: v for k, v in os.environ.items() if k != "CTLAB_JSON_EVENTS"}
     try:
         while pending or running:
@@ -437,7 +494,7 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
                 raise Cancelled()
             while pending and len(running) < workers and not failed:
                 task = pending.pop(0)
-                log = open(logs / (task["folder"].replace("/", "__") + ".log"), "w")
+                log = jobgraph.open_log(job_dir, task)
                 proc = subprocess.Popen(
                     task_command(job_dir, task["id"]), stdout=log, stderr=subprocess.STDOUT, env=env
                 )
@@ -466,8 +523,12 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
     if failed:
         task, code = failed[0]
         tail = ""
-        log = logs / (task["folder"].replace("/", "__") + ".log")
-        lines = [ln for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
+        log = jobgraph.log_path(job_dir, task)
+        try:
+            text = log.read_text(errors="replace")
+        except OSError:
+            text = ""
+        lines = [ln for ln in text.splitlines() if ln.strip()]
         tail = f": {lines[-1]}" if lines else ""
         raise UserError(
             f"task {task['id']} ({task['folder']}) failed (exit {code}){tail}; "

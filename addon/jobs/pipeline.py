@@ -21,10 +21,11 @@ import bpy
 from ..blender import model_node, renderer, scene_builder
 from ..blender.paths import bundled_hdri, resolve_hdri
 from ..core import brdf_plot, energy, ibl_bake
-from ..core.errors import Cancelled
+from ..core.errors import Cancelled, UserError
 from ..core.hdri import load_hdri
 from ..core.files import check_writable, forget_report, refuse_overwrite
 from ..core.model import BAKED_IBL_MODES, G_MODELS
+from ..core.paths import safe_name
 from ..core.settings import MatrixSettings, with_overrides
 
 
@@ -256,7 +257,6 @@ PARITY_MODEL = dict(
 def parity_hdris(names: str) -> list:
     """Blender's bundled HDRIs named in a comma list."""
     from ..blender.paths import BUNDLED_HDRIS
-    from ..core.errors import UserError
 
     chosen = [n.strip() for n in names.split(",") if n.strip()]
     if not chosen or any(n not in BUNDLED_HDRIS for n in chosen):
@@ -288,7 +288,16 @@ def parity_runs(base: MatrixSettings, hdris: list, name: str | None = None) -> l
                 principled_distribution="MULTI_GGX" if multiple else "GGX",
             ),
         )
-        jobs.append((name if name and len(hdris) == 1 else Path(hdri).stem, ct, pr))
+        # a folder name made from a file's name: made safe in one place (core.paths)
+        run = safe_name(name, "lights") if name and len(hdris) == 1 else None
+        jobs.append((run or safe_name(Path(hdri).stem, "hdri"), ct, pr))
+    names = [run for run, *_ in jobs]
+    if len(set(names)) < len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise UserError(
+            f"two parity HDRIs would share the run folder {twice[0]!r} (named from their "
+            "file names); rename one"
+        )
     return jobs
 
 

@@ -224,10 +224,13 @@ OPERATOR_CASES = (
 
 def test_the_docs_table_and_these_tests_list_the_same_cases():
     from test_hardening2 import CASES as HARDENING_CASES
+    from test_job_folder_input import CASES as JOB_FOLDER_CASES
 
     table = (ROOT / "docs" / "bad-input.md").read_text()
     documented = set(re.findall(r"^\| `([a-z0-9-]+)` \|", table, re.M))
-    assert documented == set(CLI_CASES) | set(OPERATOR_CASES) | set(HARDENING_CASES)
+    assert documented == set(CLI_CASES) | set(OPERATOR_CASES) | set(HARDENING_CASES) | set(
+        JOB_FOLDER_CASES
+    )
 
 
 def _argv(case, tmp_path):

@@ -76,20 +76,6 @@ def _hdri(path: Path, nan=False) -> Path:
     return path
 
 
-@pytest.fixture
-def alarm():
-    """A check that could block (a FIFO) fails the test instead of hanging it."""
-
-    def on_alarm(*_):
-        raise AssertionError("blocked: the command hung on its input")
-
-    old = signal.signal(signal.SIGALRM, on_alarm)
-    signal.alarm(30)
-    yield
-    signal.alarm(0)
-    signal.signal(signal.SIGALRM, old)
-
-
 # ----------------------------------------------------------------------------------------
 # 1. The path gate
 
