@@ -893,8 +893,13 @@ def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
     nodes = [node for tree in trees for node in tree.nodes]
     tables = correction_table_folder() if any(MODEL_TABLE in node for node in nodes) else None
     for node in nodes:
+        # unchanged values are not set again: every change re-syncs each material using
+        # the group (0.8 s a material, growing with the materials, where a conversion set
+        # the shared group's bake again for each)
         if MODEL_TABLE in node:
-            node.image = _float_image(tables / f"{node[MODEL_TABLE]}.exr")
+            image = _float_image(tables / f"{node[MODEL_TABLE]}.exr")
+            if node.image != image:
+                node.image = image
         if BAKE_FILE not in node:
             continue
         path = folder / f"{node[BAKE_FILE]}.exr"
@@ -902,13 +907,17 @@ def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
             raise UserError(f"the bake folder {folder} has no {path.name}; bake again")
         image = _float_image(path)
         if BAKE_DIM in node:
-            node.outputs[0].default_value = float(image.size[0 if node[BAKE_DIM] == "width" else 1])
-        else:
+            size = float(image.size[0 if node[BAKE_DIM] == "width" else 1])
+            if node.outputs[0].default_value != size:
+                node.outputs[0].default_value = size
+        elif node.image != image:
             node.image = image
 
 
 def _float_image(path: Path) -> bpy.types.Image:
     image = bpy.data.images.load(str(path), check_existing=True)
-    image.colorspace_settings.name = "Non-Color"
-    image.use_half_precision = False  # EEVEE: keep 32-bit floats on the GPU
+    if image.colorspace_settings.name != "Non-Color":  # setting it reloads the image
+        image.colorspace_settings.name = "Non-Color"
+    if image.use_half_precision:
+        image.use_half_precision = False  # EEVEE: keep 32-bit floats on the GPU
     return image
