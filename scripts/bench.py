@@ -10,7 +10,8 @@ process's wall time is reported beside it.
     .venv-bpy<series>/bin/python scripts/bench.py [--quick] [--only SECTION ...]
 
 Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only``
-re-runs the named sections (render, error, main, bake, scene, graph) and keeps the others from
+re-runs the named sections (render, error, main, bake, scene, graph, and scene-real: every
+material of a product shot converted, bench/scene_real.py) and keeps the others from
 results.json.
 Converged images for the error study are cached in out/bench-cache (keyed by Blender's
 version, the renderer, the scene and the model's sources).
@@ -43,7 +44,7 @@ OUT = ROOT / "bench"
 CACHE = ROOT / "out" / "bench-cache"
 CTLAB = ROOT / "scripts" / "ctlab.py"
 BUNDLED = ("city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset")
-SECTIONS = ("render", "error", "main", "bake", "scene", "graph")
+SECTIONS = ("render", "error", "main", "bake", "scene", "graph", "scene-real")
 SCHEMA = 2  # results.json's layout
 
 # The renderers, as ctlab render's arguments; Principled is every ratio's denominator.
@@ -744,6 +745,16 @@ def scene_table(section: dict) -> list:
     return lines
 
 
+def _scene_real():
+    """bench/scene_real.py (its own module: the product shot, every material converted)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("scene_real", OUT / "scene_real.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="smaller renders (a smoke run)")
@@ -776,6 +787,8 @@ def main():
                 results["scene"] = bench_scene(args.quick, work)
             elif section == "graph":
                 results["graph"] = bench_graph(args.quick, work)
+            elif section == "scene-real":
+                results["scene-real"] = _scene_real().bench_scene_real(args.quick, work)
             else:
                 results["bake"] = bench_bake()
             results[section]["machine"] = results["machine"]
@@ -827,6 +840,12 @@ def main():
     if "graph" in results:
         lines += (
             head("The main job as a task graph", "graph") + graph_table(results["graph"]) + [""]
+        )
+    if "scene-real" in results:
+        lines += (
+            head("Every material of a product shot converted", "scene-real")
+            + _scene_real().scene_real_table(results["scene-real"])
+            + [""]
         )
     (OUT / "results.md").write_text("\n".join(lines))
     print("\n".join(lines))

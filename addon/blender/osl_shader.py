@@ -7,6 +7,7 @@ read-only, and external-mode script nodes write the compiled .oso next to the .o
 
 from __future__ import annotations
 
+import hashlib
 import tempfile
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from ..core.files import temporary_folder
 from ..core.osl_source import SHADER_FILE, source
 
 TEXT_NAME = "ctlab_cook_torrance.osl"
+_COMPILED = {}  # a source's sha256 -> the bytecode hash its compile gave, in this process
 
 
 def ensure_oslquery() -> None:
@@ -49,8 +51,6 @@ def compile_script_node(
     ensure_oslquery()
     from cycles import osl as cycles_osl
 
-    node.mode = 'INTERNAL'
-    node.script = shader_text(path, name)
     errors = []
 
     def report(kind, message):
@@ -58,13 +58,29 @@ def compile_script_node(
             errors.append(message)
 
     # Cycles compiles an internal script through temporary .osl and .oso files and leaves the
-    # .oso (the bytecode is kept in the node): compile in a private folder, removed after,
-    # and by the cleanup of a signal during the compile (core.files.temporary_folder).
+    # .oso (the bytecode is kept in the node), both when we ask and when the node's script
+    # is set (its RNA update compiles it, with Cycles as the scene's engine): all of it in a
+    # private folder, removed after, and by the cleanup of a signal during the compile
+    # (core.files.temporary_folder). Compiled once: the update's result is kept when it has
+    # the bytecode of this source.
+    text = shader_text(path, name)
+    key = hashlib.sha256(text.as_string().encode()).hexdigest()
     saved = tempfile.tempdir
     with temporary_folder("ctlab-osl-") as folder:
         tempfile.tempdir = str(folder)
         try:
-            cycles_osl.update_script_node(node, report)
+            before = node.bytecode_hash
+            node.mode = 'INTERNAL'
+            node.script = text
+            if node.bytecode and node.bytecode_hash != before:  # the update compiled it
+                _COMPILED[key] = node.bytecode_hash
+            if not (
+                node.bytecode
+                and output in node.outputs
+                and _COMPILED.get(key) == node.bytecode_hash
+            ):
+                cycles_osl.update_script_node(node, report)
+                _COMPILED[key] = node.bytecode_hash
         finally:
             tempfile.tempdir = saved
     if errors or output not in node.outputs:

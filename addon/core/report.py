@@ -117,7 +117,11 @@ Principled's single-scatter GGX instead of its default Multiscatter GGX, which a
 energy single scattering loses on rough metals. What is left after all three is Principled's
 energy-conserving layering (its diffuse is weighted by what the specular layer does not
 reflect, where the model uses the fixed 1 - 0.04 of Unity), its dielectric Fresnel (IOR 1.5
-against Schlick at F0 = 0.04), and render noise.</p>"""
+against Schlick at F0 = 0.04), and render noise. Its renders, the seed model and Principled
+included, are half the main render's size (its spheres kept at least 3 px across their radius;
+each folder's scene.json has the size): the same samples per pixel on a quarter of the pixels,
+so its per-sphere means keep their meaning, and its first row is close to, not equal to, the
+comparison above.</p>"""
 
 FURNACE_NOTE = """<p>White furnace: a uniform world of radiance 1, the Sun off, metallic 1 and
 albedo 1 (so F = 1): the indirect_specular view is the specular directional albedo, which

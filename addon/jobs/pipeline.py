@@ -11,6 +11,7 @@ one, and polls ``cancelled()`` between steps: when it answers True the job stops
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +27,7 @@ from ..core.hdri import load_hdri
 from ..core.files import check_writable, forget_report, refuse_overwrite
 from ..core.model import BAKED_IBL_MODES, G_MODELS
 from ..core.paths import safe_name
-from ..core.settings import MatrixSettings, with_overrides
+from ..core.settings import MIN_SPHERE_PX, MatrixSettings, with_overrides, world_to_pixel
 
 
 def _nothing(*_args) -> None:
@@ -133,7 +134,8 @@ def render_one(settings: MatrixSettings, out_dir: Path, samples: int, **kw) -> d
 
 SMITH = {"g_model": "smith_ggx_correlated"}
 # The matrix job's renders: (folder, label, shader, IBL mode, settings changed from the
-# base's). The last four are the configurations of the attribution.
+# base's). The last six are the attribution's (``ATTRIBUTION_PREFIX``): the seed model and
+# Principled again, then each switch, rendered smaller (``attribution_size``).
 MATRIX_RENDERS = (
     ("cook_torrance", "Cook-Torrance (OSL, reference IBL)", "osl", "reference", {}),
     ("principled", "Principled BSDF", "principled", "reference", {}),
@@ -147,6 +149,8 @@ MATRIX_RENDERS = (
         {},
     ),
     ("nodes", "Cook-Torrance (node group, split-sum IBL)", "nodes", "split_sum", {}),
+    ("attr_seed", "Cook-Torrance (OSL, reference IBL; attribution)", "osl", "reference", {}),
+    ("attr_principled", "Principled BSDF (attribution)", "principled", "reference", {}),
     ("attr_smith", "Cook-Torrance with Smith G", "osl", "reference", SMITH),
     (
         "attr_smith_lambert",
@@ -179,15 +183,16 @@ MATRIX_COMPARISONS = (
     ("compare_unity", "unity", "cook_torrance"),
     ("compare_split_sum_corrected", "split_sum_corrected", "cook_torrance"),
     ("compare_nodes", "nodes", "split_sum"),
-    ("compare_attr_smith", "attr_smith", "principled"),
-    ("compare_attr_smith_lambert", "attr_smith_lambert", "principled"),
+    ("compare_attr_seed", "attr_seed", "attr_principled"),
+    ("compare_attr_smith", "attr_smith", "attr_principled"),
+    ("compare_attr_smith_lambert", "attr_smith_lambert", "attr_principled"),
     ("compare_attr_ggx", "attr_smith_lambert", "attr_principled_ggx"),
-    ("compare_attr_compensated", "attr_compensated", "principled"),
+    ("compare_attr_compensated", "attr_compensated", "attr_principled"),
 )
 # The attribution: the error against Principled after each switch (comparison folder, the
 # switch; the step it follows, where not the one before).
 ATTRIBUTION = (
-    ("compare", "seed model"),
+    ("compare_attr_seed", "seed model"),
     ("compare_attr_smith", "G: Cook-Torrance to Smith"),
     ("compare_attr_smith_lambert", "diffuse: Disney to Lambert"),
     ("compare_attr_ggx", "Principled: multiscatter to single-scatter GGX"),
@@ -215,10 +220,26 @@ def _forget_report(out: Path) -> None:
     forget_report(Path(out) / "report.html")  # only one ctlab wrote (core.files)
 
 
+ATTRIBUTION_PREFIX = "attr_"
+ATTRIBUTION_SCALE = 0.5
+
+
+def attribution_size(base: MatrixSettings) -> dict:
+    """The attribution's image size: half the main render's (a quarter of its render time),
+    but its spheres at least MIN_SPHERE_PX across their radius. Its figures are per-sphere
+    means of per-pixel differences at the same samples per pixel, so they keep their meaning
+    on fewer pixels; all its steps, the seed model and Principled included, share the size."""
+    radius_px = base.radius * world_to_pixel(base, (0.0, 0.0, 0.0))[1]
+    scale = min(1.0, max(ATTRIBUTION_SCALE, MIN_SPHERE_PX / radius_px))
+    return {"width": math.ceil(base.width * scale), "height": math.ceil(base.height * scale)}
+
+
 def matrix_settings(base: MatrixSettings) -> dict:
     """The main job's renders: folder -> settings, all validated before anything renders."""
     settings = {}
     for folder, _, shader, ibl, overrides in MATRIX_RENDERS:
+        if folder.startswith(ATTRIBUTION_PREFIX):
+            overrides = dict(overrides, **attribution_size(base))
         # the baked modes are the lab transport's approximations of the reference: with
         # --light-transport scene they stay lab renders (the study of the split-sum, and the
         # node group's parity with the OSL shader in the same mode)

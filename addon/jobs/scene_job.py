@@ -14,7 +14,13 @@ first render (Blender's multilayer EXR of the Render Result, ``layers.exr``, rea
 bundled OpenImageIO) says which pixels are whose. Per material: the mean CIEDE2000 of the
 displayed colours and the ratio of the mean Rec. 709 luminance of the raw values (model /
 Principled), and more, in metrics.json; a CIEDE2000 heat map (diff.png), a map of the masks
-(materials.png) and report.html.
+(materials.png) and report.html. Beside the per-pixel mean CIEDE2000, each material's noise
+floor (Principled against Principled rendered again with another seed, into
+``principled_seed/``) and the CIEDE2000 of its mean colour (``what_numbers_mean``).
+
+One kind of reference in both modes: Principled's Multiscatter GGX where the model's energy is
+compensated, its GGX where it is none (blender/convert.py ``ENERGY_OF``; with ``--convert`` the
+conversion follows the file's distribution, and ``--energy`` sets the reference's).
 
 The .blend is opened, changed in memory only and never saved. Everything is checked before
 anything is written (bad input: one line, exit status 2, nothing written); every output is
@@ -388,6 +394,23 @@ def read_material_index(path: Path) -> np.ndarray:
     raise UserError(f"{path} holds no Material Index pass; Blender did not render it")
 
 
+NOISE_FOLDER = "principled_seed"  # Principled again, another seed: the noise floor
+
+
+def render_noise_floor(scene, job: SceneJob, folder: Path, description: dict, log, events, step):
+    """Principled rendered again with the next seed (the one before, at the last seed) into
+    ``folder``: what two renders of the same scene differ by (``what_numbers_mean``)."""
+    events.progress(step, 4, "Principled again with another seed (the noise floor)")
+    seed = job.seed + 1 if job.seed < MAX_SEED else job.seed - 1
+    scene.cycles.seed = seed
+    try:
+        d = renderer.render(scene, folder, dict(description, side="principled", seed=seed), log)
+    finally:
+        scene.cycles.seed = job.seed
+    events.note(f"{d['render_seconds']:.1f} s")
+    events.check()
+
+
 def render_into(scene, folder: Path, description: dict, log) -> tuple:
     """Render, write render.exr, render.png, scene.json and layers.exr; (description, index)."""
     description = renderer.render(scene, folder, description, log)
@@ -436,6 +459,26 @@ def measure(lin_m, disp_m, lin_p, disp_p, de, mask) -> dict:
     return out
 
 
+def what_numbers_mean(lin_p, lin_p2, disp_m, disp_p, de_noise, mask) -> dict:
+    """Beside the per-pixel mean CIEDE2000, what a reader needs to weigh it: the noise floor,
+    the same measures between Principled and Principled rendered again with another seed
+    (the same scene, so all of it is Monte Carlo noise), and the CIEDE2000 of the mask's
+    mean displayed colours, model against Principled (noise averages out of a mean, not out
+    of the per-pixel mean: a pixel's noise adds to its difference)."""
+    if not mask.any():
+        return dict.fromkeys(
+            ("noise_floor_ciede2000_mean", "noise_floor_luminance_ratio", "ciede2000_of_mean")
+        )
+    mean_m, mean_p = (np.mean(d[mask][:, :3].astype(np.float64), axis=0) for d in (disp_m, disp_p))
+    y_p, y_p2 = _luminance(lin_p, mask), _luminance(lin_p2, mask)
+    lab_m, lab_p = (srgb_to_lab(c.reshape(1, 1, 3)) for c in (mean_m, mean_p))
+    return {
+        "noise_floor_ciede2000_mean": float(np.mean(de_noise[mask])),
+        "noise_floor_luminance_ratio": (y_p2 / y_p) if y_p else None,
+        "ciede2000_of_mean": float(ciede2000(lab_m, lab_p).ravel()[0]),
+    }
+
+
 def mask_image(index: np.ndarray, entries: list) -> np.ndarray:
     """materials.png: each compared material in its palette colour, other materials grey,
     the world (index 0) black."""
@@ -467,7 +510,8 @@ def write_scene_report(out: Path, data: dict) -> Path:
     )
     head = (
         "<tr><th></th><th>material</th><th>model</th><th>Principled</th><th>pixels</th>"
-        "<th>&Delta;E00 mean</th><th>&Delta;E00 p95</th><th>luminance model / "
+        "<th>&Delta;E00 mean</th><th>noise floor &Delta;E00 mean</th>"
+        "<th>&Delta;E00 of the mean colour</th><th>&Delta;E00 p95</th><th>luminance model / "
         "Principled</th><th>PSNR (dB)</th><th>notes</th></tr>"
     )
     rows = []
@@ -483,6 +527,8 @@ def write_scene_report(out: Path, data: dict) -> Path:
             f"<td>{html.escape(what)}</td>"
             f"<td>{html.escape(str(e.get('principled_distribution') or ''))}</td>"
             f"<td>{e['pixels']}</td><td>{_fmt(e['ciede2000_mean'], '.2f')}</td>"
+            f"<td>{_fmt(e.get('noise_floor_ciede2000_mean'), '.2f')}</td>"
+            f"<td>{_fmt(e.get('ciede2000_of_mean'), '.2f')}</td>"
             f"<td>{_fmt(e['ciede2000_p95'], '.2f')}</td>"
             f"<td>{_fmt(e['luminance_ratio'], '.4f')}</td><td>{_fmt(e['psnr_db'], '.2f')}</td>"
             f"<td>{html.escape('; '.join(e['notes']))}</td></tr>"
@@ -490,7 +536,7 @@ def write_scene_report(out: Path, data: dict) -> Path:
     o = data["overall"]
     rows.append(
         f"<tr class='all'><td></td><td colspan=3>all compared materials</td>"
-        f"<td>{o['pixels']}</td><td>{_fmt(o['ciede2000_mean'], '.2f')}</td>"
+        f"<td>{o['pixels']}</td><td>{_fmt(o['ciede2000_mean'], '.2f')}</td><td></td><td></td>"
         f"<td>{_fmt(o['ciede2000_p95'], '.2f')}</td>"
         f"<td>{_fmt(o['luminance_ratio'], '.4f')}</td>"
         f"<td>{_fmt(o['psnr_db'], '.2f')}</td><td></td></tr>"
@@ -530,7 +576,14 @@ Cycles settings ({data['width']}&times;{data['height']} px, {data['samples']} sa
 {data['seed']}, light transport <b>{data['light_transport']}</b>): {direction}. Each
 material's pixels are those of its Material Index; &Delta;E00 (CIEDE2000) compares the displayed
 colours (render.png, the file's view transform {html.escape(data['view_transform'])}), the
-luminance ratio the mean Rec. 709 luminance of the raw values (render.exr).</p>
+luminance ratio the mean Rec. 709 luminance of the raw values (render.exr). The per-pixel mean
+&Delta;E00 includes each pixel's noise: the <i>noise floor</i> is the same mean between
+Principled and Principled rendered again with another seed (all of it noise), and the
+&Delta;E00 of the mean colour compares each material's mean displayed colour, from which noise
+averages out. The two compared renders share their seed, so their noise is partly the same
+and cancels: a per-pixel mean below the noise floor is usual. Both sides use the same kind of
+Principled: Multiscatter GGX where the model's
+energy is compensated, GGX where it is none.</p>
 <div class='row'>{row}</div>
 <h2>Per material</h2><table>{head}{''.join(rows)}</table>
 <p>Elsewhere in the image (other materials and the world, which see the compared materials in
@@ -594,6 +647,17 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
                 "notes": [],
             }
         )
+    if job.convert and job.energy is not None:
+        # one kind of reference in both modes: Principled's GGX as the model's energy
+        # (convert.DISTRIBUTION_OF), as distribution_for does the other way
+        wanted = convert.DISTRIBUTION_OF[job.energy]
+        for mat, e in zip(targets, entries):
+            bsdf = convert.surface_principled(mat)
+            if bsdf.distribution != wanted:
+                e["notes"].append(
+                    f"reference: {bsdf.distribution} rendered as {wanted} (--energy {job.energy})"
+                )
+                bsdf.distribution = wanted
     if not job.convert:
         for mat, e in zip(targets, entries):
             node = set_model(mat, job, job.shader)
@@ -611,7 +675,11 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
     width, height = configure(scene, camera, job, osl)
 
     out = Path(job.out)
-    folders = {"model": out / "model", "principled": out / "principled"}
+    folders = {
+        "model": out / "model",
+        "principled": out / "principled",
+        "noise": out / NOISE_FOLDER,
+    }
     refuse_overwrite(
         inputs,
         [f / n for f in folders.values() for n in RENDER_FILES] + [out / n for n in OUTPUT_FILES],
@@ -634,40 +702,48 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
     first, second = ("principled", "model") if job.convert else ("model", "principled")
     scenes = {}
     events.check()
-    events.progress(1, 3, f"{first}: {width}x{height} px, {job.samples} samples")
+    events.progress(1, 4, f"{first}: {width}x{height} px, {job.samples} samples")
     scenes[first], index = render_into(scene, folders[first], dict(description, side=first), log)
     events.note(f"{scenes[first]['render_seconds']:.1f} s")
     events.check()
+    if first == "principled":
+        render_noise_floor(scene, job, folders["noise"], description, log, events, 2)
 
     # The other side: each compared material converted.
     if job.convert:
         for mat, e in zip(targets, entries):
             e["principled_distribution"] = convert.surface_principled(mat).distribution
-            e["notes"] = convert.principled_to_model(mat, scene, impl)
+            e["notes"] += convert.principled_to_model(mat, scene, impl)
             e["model"] = model_description(mat, set_model(mat, job, None))
             light_sync.sync_material(mat, scene, env=env)
     else:
         for mat, e in zip(targets, entries):
             e.update(to_principled(mat, job, e["model"]["energy"]))
 
-    events.progress(2, 3, f"{second}: {width}x{height} px, {job.samples} samples")
+    step = 3 if first == "principled" else 2
+    events.progress(step, 4, f"{second}: {width}x{height} px, {job.samples} samples")
     scenes[second], index2 = render_into(
         scene, folders[second], dict(description, side=second), log
     )
     events.note(f"{scenes[second]['render_seconds']:.1f} s")
     events.check()
+    if second == "principled":
+        render_noise_floor(scene, job, folders["noise"], description, log, events, 3)
 
     events.progress(
-        3, 3, "comparing; writing metrics.json, diff.png, materials.png and report.html"
+        4, 4, "comparing; writing metrics.json, diff.png, materials.png and report.html"
     )
     lin_m, disp_m = (read_image(folders["model"] / n) for n in ("render.exr", "render.png"))
     lin_p, disp_p = (read_image(folders["principled"] / n) for n in ("render.exr", "render.png"))
+    lin_p2, disp_p2 = (read_image(folders["noise"] / n) for n in ("render.exr", "render.png"))
     de = ciede2000(srgb_to_lab(disp_m), srgb_to_lab(disp_p))
+    de_noise = ciede2000(srgb_to_lab(disp_p2), srgb_to_lab(disp_p))
     compared = np.zeros(index.shape, dtype=bool)
     for e in entries:
         mask = index == e["pass_index"]
         compared |= mask
         e.update(measure(lin_m, disp_m, lin_p, disp_p, de, mask))
+        e.update(what_numbers_mean(lin_p, lin_p2, disp_m, disp_p, de_noise, mask))
     data = dict(
         description,
         samples=job.samples,

@@ -157,12 +157,12 @@ def blends(tmp_path_factory):
     return folder
 
 
-def run(*args):
+def run(*args, **env):
     return subprocess.run(
         CTLAB + [str(a) for a in args],
         capture_output=True,
         text=True,
-        env=dict(os.environ),
+        env=dict(os.environ, **env),
         timeout=300,
     )
 
@@ -199,7 +199,7 @@ def test_scene_job_metal_sphere_model_against_principled(blends, tmp_path):
     out = tmp_path / "out"
     p = run("scene", blend, "--out", out, "--size", SIZE, "--samples", SAMPLES)
     assert p.returncode == 0, p.stderr + p.stdout
-    assert "[1/3]" in p.stdout and "[3/3]" in p.stdout
+    assert "[1/4]" in p.stdout and "[4/4]" in p.stdout
     assert digest(blend) == before  # opened, never written
     for f in (
         "model/render.exr",
@@ -249,6 +249,14 @@ def test_scene_job_metal_sphere_model_against_principled(blends, tmp_path):
     # parity within noise (see the docstring)
     assert abs(mat["luminance_ratio"] - 1) < 0.03, mat
     assert mat["ciede2000_mean"] < 1.0, mat
+    # what the numbers mean: the noise floor is Principled against itself with another seed
+    # (principled_seed/), all noise, so well above this same-paths comparison (and finite:
+    # 16 samples); the mean colours agree as the pixels do
+    assert (out / "principled_seed" / "render.png").is_file()
+    assert 10 * mat["ciede2000_mean"] < mat["noise_floor_ciede2000_mean"] < 10, mat
+    assert abs(mat["noise_floor_luminance_ratio"] - 1) < 0.03, mat
+    assert 0 <= mat["ciede2000_of_mean"] < 0.5, mat
+    assert "noise floor" in (out / "report.html").read_text()
     html = (out / "report.html").read_text()
     assert "CT Metal" in html and "model/render.png" in html and "diff.png" in html
     # the bound discriminates: Principled's Multiscatter GGX adds the energy that single
@@ -276,7 +284,12 @@ def test_scene_job_metal_sphere_model_against_principled(blends, tmp_path):
 def test_scene_job_convert_principled_to_model(blends, tmp_path):
     """--convert: the floor and the cube (Principled) become Cook-Torrance materials (Smith G,
     Lambert here) and the originals are the reference; the metal sphere (the model already)
-    is the same in both renders."""
+    is the same in both renders. Converted from Multiscatter GGX, the model's energy is
+    compensated (the same kind of reference as without --convert). TMPDIR, an empty folder,
+    stays empty (before blender/osl_shader.py compiled in a private folder, this job left
+    one .oso file per converted material there)."""
+    tmp = tmp_path / "tmpdir"
+    tmp.mkdir()
     blend = blends / "scene.blend"
     before = digest(blend)
     out = tmp_path / "out"
@@ -296,14 +309,17 @@ def test_scene_job_convert_principled_to_model(blends, tmp_path):
         "lambert",
         "--light-transport",
         "scene",
+        TMPDIR=str(tmp),
     )
     assert p.returncode == 0, p.stderr + p.stdout
     assert digest(blend) == before
+    assert sorted(tmp.iterdir()) == []  # no compiled shader left (blender/osl_shader.py)
     m = json.loads((out / "metrics.json").read_text())
     assert m["convert"] and sorted(x["name"] for x in m["materials"]) == ["Cube", "Floor"]
     for mat in m["materials"]:
         assert mat["pixels"] > 0 and mat["model"]["diffuse_model"] == "lambert"
         assert mat["principled_distribution"] == "MULTI_GGX"  # the file's own
+        assert mat["model"]["energy"] == "compensated"  # Principled's kind (convert.py)
         # dielectrics differ by the model's fixed 0.96 diffuse against Principled's layering
         # (about +1.5% here), far less than a wrong mapping would
         assert 0.9 < mat["luminance_ratio"] < 1.1, mat

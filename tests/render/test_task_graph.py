@@ -305,7 +305,9 @@ def _same_job(a, b):
     """The same renders (bit-identical, or up to Cycles' own run-to-run differences, see
     above), the same metrics (exactly, where no input differed) and the same layout.
     Returns the render folders that differed."""
-    assert renders(a) == renders(b) and len(renders(a)) == 13
+    from addon.jobs.pipeline import FURNACE_RENDERS, MATRIX_COMPARISONS, MATRIX_RENDERS
+
+    assert renders(a) == renders(b) and len(renders(a)) == len(MATRIX_RENDERS + FURNACE_RENDERS)
     differed = set()
     for folder in renders(a):
         x, y = read_image(a / folder / "render.exr"), read_image(b / folder / "render.exr")
@@ -318,10 +320,8 @@ def _same_job(a, b):
             d.max(),
         )
         differed.add(folder)
-    from addon.jobs.pipeline import MATRIX_COMPARISONS
-
     ma, mb = metrics(a), metrics(b)
-    assert set(ma) == set(mb) and len(ma) == 9
+    assert set(ma) == set(mb) and len(ma) == len(MATRIX_COMPARISONS)
     for cmp_dir, x, y in MATRIX_COMPARISONS:
         if differed & {x, y}:
             la, lb = dict(_leaves(ma[cmp_dir])), dict(_leaves(mb[cmp_dir]))

@@ -1,0 +1,124 @@
+"""What a new material costs after the first: the node group built once and then
+appended from the cache (blender/node_group.py ``ensure_group``), the OSL shader compiled
+once per node with nothing left in TMPDIR (blender/osl_shader.py), and the conversion keeping
+Principled's energy behaviour (blender/convert.py ``ENERGY_OF``). Mechanisms, not timings:
+the timings are in bench/results.md."""
+
+import tempfile
+
+import bpy
+import pytest
+
+from addon.blender import compat, convert, model_node, node_group
+
+
+def _groups():
+    return sorted(g.name for g in bpy.data.node_groups)
+
+
+def _shape(group):
+    """Nodes and links of the group and the groups it holds, by name."""
+    seen, pending = {}, [group]
+    while pending:
+        tree = pending.pop()
+        if tree.name not in seen:
+            seen[tree.name] = (len(tree.nodes), len(tree.links))
+            pending += [
+                n.node_tree
+                for n in tree.nodes
+                if n.bl_idname == "ShaderNodeGroup" and n.node_tree is not None
+            ]
+    return seen
+
+
+@pytest.fixture
+def builds(monkeypatch, tmp_path):
+    """An empty cache of its own, and a count of the node group's builds."""
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
+    count = {"builds": 0}
+    build = node_group.build_group
+
+    def counted(*args, **kw):
+        count["builds"] += 1
+        return build(*args, **kw)
+
+    monkeypatch.setattr(node_group, "build_group", counted)
+    return count
+
+
+def _material(name):
+    mat = bpy.data.materials.new(name)
+    compat.use_nodes(mat)
+    return mat
+
+
+def test_the_node_group_is_built_once_then_appended(builds, tmp_path):
+    """The first ensure_group builds the group (1,271 nodes in four groups) and caches it;
+    a second material in the same file reuses the same datablock (no build, no new group);
+    a new file (a task's fresh scene) appends it from the cache: no build, the same nodes and
+    links, ours (tag and source hash), no fake user. A damaged cache entry is never used: the
+    group is built again. Mutation check: with ``_append_cached`` returning None, the fresh
+    file builds a second time and this test fails."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    first = node_group.ensure_group()
+    assert builds["builds"] == 1
+    shape, names = _shape(first), _groups()
+    assert len(names) == 4 and sum(n for n, _ in shape.values()) > 1000
+    entry = tmp_path / "cache" / node_group.cache_key(node_group.source_digest())
+    assert (entry / node_group.GROUP_FILE).is_file()
+
+    a, b = (model_node.new_node(_material(n).node_tree, "nodes") for n in ("A", "B"))
+    assert a.node_tree == b.node_tree == first and builds["builds"] == 1
+    assert _groups() == names
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    assert not bpy.data.node_groups
+    appended = node_group.ensure_group()
+    assert builds["builds"] == 1  # appended, not built
+    assert _groups() == names and _shape(appended) == shape
+    assert appended.get(node_group.TAG) and not appended.use_fake_user
+    assert appended.get(node_group.SOURCE_HASH) == node_group.source_digest()
+    assert model_node.new_node(_material("C").node_tree, "nodes").node_tree == appended
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    blend = entry / node_group.GROUP_FILE
+    blend.write_bytes(blend.read_bytes()[:1000])  # damaged: the manifest no longer matches
+    assert _shape(node_group.ensure_group()) == shape
+    assert builds["builds"] == 2  # built again, not read from the damaged file
+
+
+def test_an_osl_node_leaves_nothing_in_tmpdir(monkeypatch, tmp_path):
+    """Cycles compiles a script node through temporary .osl/.oso files and leaves the .oso
+    in TMPDIR, also when only the node's script is set (its update compiles it). Every
+    compile of ours happens in a private folder, removed after: TMPDIR stays empty over a
+    conversion to OSL (three materials). Mutation check: setting the node's script before
+    entering the private folder (as before) left one .oso per material here."""
+    tmp = tmp_path / "tmpdir"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = 'CYCLES'  # the script node's update compiles with Cycles
+    for name in ("A", "B", "C"):
+        mat = _material(name)
+        assert convert.principled_to_model(mat, scene, "osl") == []
+        assert model_node.implementation(model_node.find(mat)) == "osl"
+    assert sorted(p.name for p in tmp.iterdir()) == []
+
+
+@pytest.mark.parametrize("impl", ["nodes", "osl"])
+def test_conversion_keeps_principleds_energy(impl):
+    """Principled's Multiscatter GGX (Blender's default) becomes energy compensated and its
+    single-scatter GGX energy none, so a converted rough metal keeps the light that Principled
+    keeps (docs/model.md "energy"); the way back gives the distribution again. Mutation
+    check: without the energy setting every conversion read the model's default, none, and
+    the Multiscatter case failed."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    for distribution, energy in (('MULTI_GGX', "compensated"), ('GGX', "none")):
+        mat = _material(distribution)
+        convert.surface_principled(mat).distribution = distribution
+        assert convert.principled_to_model(mat, scene, impl) == []  # nothing to report
+        assert model_node.get_option(model_node.find(mat), "energy") == energy
+        convert.model_to_principled(mat)
+        assert convert.surface_principled(mat).distribution == distribution
