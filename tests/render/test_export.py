@@ -3,14 +3,14 @@ as MaterialX in addon/core/materialx.py) and its proof: every written .mtlx pass
 own ``validate()`` (PyPI materialx, run in a child process without bpy: Blender's bundled
 MaterialX lacks the OSL generator and the two would clash), MaterialX's OSL generator turns the
 graph into OSL that Cycles compiles and renders equal to the model's ``scene`` transport for
-the height-correlated Smith G, and for the Cook-Torrance G the difference is the directional
-albedo residual of docs/model.md's table, computed here by brute-force quadrature
+the height-correlated Smith G, and for the other G and compensated energy the difference is
+the directional albedo residual of docs/model.md's table, computed here by brute-force quadrature
 (tests/reference_model.py), not by the code under test. The USD file is read back with USD's
 own reader (Blender's bundled pxr). Bad input: one line, exit status 2, nothing written.
 
-Mutation check (done once): writing color0 = albedo instead of mix(0.04, albedo, metallic) in
-core/materialx.py made the Smith render differ by 0.05 of the peak (bound 1e-3), and dropping
-the ifequal switch to Burley always failed the Lambert case."""
+Mutation check (done once): color0 = albedo instead of mix(0.04, albedo, metallic) in
+core/materialx.py made the Smith renders differ by 0.55 (peak 1.06; bound 1e-3 of it), and
+the diffuse switch fixed to Burley made the Lambert case differ by 0.019."""
 
 import json
 import os
