@@ -264,6 +264,7 @@ class CTLAB_PT_sidebar_materials(_Sidebar, bpy.types.Panel):
         layout.operator(CTLAB_OT_new_material.bl_idname, icon='ADD')
         layout.prop(context.scene, "ctlab_sun")
         layout.operator(CTLAB_OT_sync_lighting.bl_idname, icon='FILE_REFRESH')
+        layout.operator(CTLAB_OT_export_materialx.bl_idname, icon='EXPORT').scope = 'ALL'
         col = layout.column(align=True)
         col.label(text="Selected objects:")
         col.operator(CTLAB_OT_convert_to_cook_torrance.bl_idname).scope = 'SELECTED'
