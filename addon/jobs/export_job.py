@@ -56,7 +56,10 @@ def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, i
     docs = plan_outputs(materials, fmt, out, stem)
     textures = {out / f.name: f for f in files}
     sources = [Path(f.source) for f in files if f.source]
-    refuse_overwrite(list(inputs) + sources, list(docs) + list(textures))
+    packed = [materialx.metallic_roughness_name(m) for m in materials] if fmt == "gltf" else []
+    refuse_overwrite(
+        list(inputs) + sources, list(docs) + list(textures) + [out / n for n in packed if n]
+    )
     check_writable(out)
     written = []
     for path, f in textures.items():
@@ -67,12 +70,38 @@ def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, i
             with atomic_path(path) as tmp:
                 Path(tmp).write_bytes(f.data)
         written.append(path)
+    if fmt == "gltf":
+        written += write_metallic_roughness(materials, out)
     for path, doc in docs.items():
         if isinstance(doc, dict):
             write_json(path, doc)
         else:
             write_text(path, doc)
         written.append(path)
+    return written
+
+
+def write_metallic_roughness(materials: list, out: Path) -> list:
+    """glTF's packed metallic-roughness images (core.materialx.metallic_roughness_pixels),
+    read from the textures already copied into ``out``."""
+    from ..core.compare import read_image, write_png
+
+    written = []
+    for mat in materials:
+        name = materialx.metallic_roughness_name(mat)
+        if name is None:
+            continue
+        maps = {
+            key: read_image(out / mat.textures[key].file)[..., 0]
+            for key in ("metallic", "smoothness")
+            if key in mat.textures
+        }
+        invert = "smoothness" in mat.textures and mat.textures["smoothness"].invert
+        pixels = materialx.metallic_roughness_pixels(
+            maps.get("metallic"), maps.get("smoothness"), invert
+        )
+        write_png(out / name, pixels)
+        written.append(out / name)
     return written
 
 

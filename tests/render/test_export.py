@@ -225,7 +225,8 @@ def test_export_usd_reads_back(blends, tmp_path):
 
 def test_export_gltf(blends, tmp_path):
     """glTF: baseColorFactor = albedo, metallicFactor, roughnessFactor = 1 - smoothness, the
-    albedo and normal textures; what glTF cannot carry listed in extras."""
+    albedo and normal textures, metallic and roughness packed into one image as glTF wants
+    them (G roughness, B metallic); what glTF cannot carry listed in extras."""
     out = tmp_path / "gltf"
     run = ctlab("export", blends / "export.blend", "--format", "gltf", "--out", out)
     assert run.returncode == 0, run.stderr
@@ -237,11 +238,20 @@ def test_export_gltf(blends, tmp_path):
     assert smith["metallicFactor"] == pytest.approx(0.4)
     assert smith["roughnessFactor"] == pytest.approx(0.4)
     tex = by_name["CT Textured"]
-    assert doc["images"][tex["pbrMetallicRoughness"]["baseColorTexture"]["index"]]["uri"] == (
-        "textures/paint.png"
-    )
+    base = doc["textures"][tex["pbrMetallicRoughness"]["baseColorTexture"]["index"]]["source"]
+    assert doc["images"][base]["uri"] == "textures/paint.png"
     assert tex["normalTexture"]["scale"] == pytest.approx(0.5)
-    assert any("smoothness texture" in n for n in tex["extras"]["cook_torrance_lab"]["not_carried"])
+    # the roughness map (0.7, wired through 1 - x) in G of the packed image, metallic 1 in B
+    # (its factor 0 carries the value), R unused
+    rough = tex["pbrMetallicRoughness"]
+    assert rough["roughnessFactor"] == 1.0 and rough["metallicFactor"] == 0.0
+    uri = doc["images"][doc["textures"][rough["metallicRoughnessTexture"]["index"]]["source"]]
+    pixels = compare.read_image(out / uri["uri"])
+    assert pixels[..., 1] == pytest.approx(np.full((4, 4), 179 / 255), abs=1e-6)
+    assert pixels[..., 2] == pytest.approx(np.ones((4, 4)))
+    assert "Burley (Disney) diffuse" in " ".join(
+        by_name["CT Smith"]["extras"]["cook_torrance_lab"]["not_carried"]
+    )
 
 
 @pytest.mark.parametrize(
