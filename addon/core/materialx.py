@@ -519,11 +519,13 @@ def usda_document(materials: list) -> str:
     """A USD layer (text) with a UsdShade Material per model material under /Materials, each
     carrying the flattened MaterialX network (outputs:mtlx:surface), and a prim per object
     under /Objects named like the object, bound to its material (MaterialBindingAPI). No
-    geometry: a pipeline layers it over its own by path."""
+    geometry: a pipeline layers it over its own by path. The default prim is /Materials (a
+    reference to the file brings the material library)."""
     lines = [
         "#usda 1.0",
         "(",
         '    doc = "Cook-Torrance Lab export: the model as MaterialX networks (docs/model.md)"',
+        '    defaultPrim = "Materials"',
         '    upAxis = "Z"',
         "    metersPerUnit = 1",
         ")",

@@ -192,17 +192,23 @@ def test_export_materialx_validates(blends, tmp_path):
 
 
 def test_export_usd_reads_back(blends, tmp_path):
-    """The USD layer opens in USD's own reader (Blender's pxr): each object's prim is bound to
-    its material, whose mtlx:surface output is MaterialX's surface node fed by
-    generalized_schlick_bsdf with the material's values."""
+    """The USD layer passes USD's own compliance checker and opens in its reader (Blender's
+    pxr): each object's prim is bound to its material, whose mtlx:surface output is
+    MaterialX's surface node fed by generalized_schlick_bsdf with the material's values."""
     out = tmp_path / "usd"
     run = ctlab("export", blends / "export.blend", "--format", "usd", "--out", out)
     assert run.returncode == 0, run.stderr
     from addon.blender.compat import bundled_module
 
     bundled_module("pxr")
-    from pxr import Usd, UsdShade
+    from pxr import Usd, UsdShade, UsdUtils
 
+    checker = UsdUtils.ComplianceChecker(rootPackageOnly=False, skipVariants=False)
+    checker.CheckCompliance(str(out / "export.usda"))
+    assert not checker.GetErrors() and not checker.GetFailedChecks(), (
+        checker.GetErrors(),
+        checker.GetFailedChecks(),
+    )
     stage = Usd.Stage.Open(str(out / "export.usda"))
     assert stage is not None
     bound = UsdShade.MaterialBindingAPI(stage.GetPrimAtPath("/Objects/Sphere"))
