@@ -1,0 +1,95 @@
+"""The model as MaterialX (addon/core/materialx.py), without Blender: every switch combination's
+document passes MaterialX's own validate() (PyPI materialx 1.39.5; the unit tier imports no
+bpy, so Blender's bundled MaterialX is not in the way), the nodedef's inputs are the model's
+surface inputs (core.model.SURFACE), and the glTF packing and names follow docs/model.md.
+The equivalence renders are tests/render/test_export.py."""
+
+import itertools
+import xml.etree.ElementTree as ET
+
+import MaterialX as mx
+import numpy as np
+import pytest
+
+from addon.core import materialx
+from addon.core.model import DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, SURFACE
+
+TEXTURES = {
+    "albedo": materialx.Texture("textures/a.png", "srgb_texture"),
+    "metallic": materialx.Texture("textures/m.png"),
+    "smoothness": materialx.Texture("textures/r.png", invert=True),
+    "normal": materialx.Texture("textures/n.png", strength=0.5),
+}
+
+
+@pytest.fixture(scope="module")
+def library():
+    lib = mx.createDocument()
+    mx.loadLibraries(mx.getDefaultDataLibraryFolders(), mx.getDefaultDataSearchPath(), lib)
+    return lib
+
+
+@pytest.mark.parametrize(
+    "g_model,diffuse,energy,textured",
+    list(itertools.product(G_MODELS, DIFFUSE_MODELS, ENERGY_MODES, (False, True))),
+)
+def test_every_document_validates(library, g_model, diffuse, energy, textured):
+    """Each combination's .mtlx is valid for MaterialX 1.39.5 (a misspelt input, a wrong type
+    or a dangling connection fails validate())."""
+    assert mx.getVersionString() == "1.39.5"
+    mat = materialx.Material(
+        "Mat 1/é",
+        albedo=(0.9, 0.5, 0.3),
+        metallic=0.4,
+        smoothness=0.6,
+        g_model=g_model,
+        diffuse_model=diffuse,
+        energy=energy,
+        textures=TEXTURES if textured else {},
+    )
+    doc = mx.createDocument()
+    mx.readFromXmlString(doc, materialx.mtlx_document(mat))
+    doc.setDataLibrary(library)
+    ok, message = doc.validate()
+    assert ok, message
+    assert [m.getName() for m in doc.getMaterialNodes()] == ["Mat_1__"]
+
+
+def test_nodedef_inputs_are_the_models_surface_inputs():
+    """One home: the nodedef carries core.model's surface inputs, plus the diffuse switch."""
+    names = [name for name, *_ in materialx.NODEDEF_INPUTS]
+    assert names == [i.key for i in SURFACE] + ["diffuse_lambert"]
+    root = ET.fromstring(materialx.mtlx_document(materialx.Material("m")))
+    nodedef = root.find("nodedef")
+    assert [e.get("name") for e in nodedef.findall("input")] == names
+
+
+def test_exact_only_for_smith_without_compensation():
+    for g, e in itertools.product(G_MODELS, ENERGY_MODES):
+        mat = materialx.Material("m", g_model=g, energy=e)
+        assert materialx.exact(mat) == (g == "smith_ggx_correlated" and e == "none")
+        assert bool(materialx.not_carried(mat)) != materialx.exact(mat)
+
+
+def test_gltf_factors_and_packed_metallic_roughness():
+    """roughnessFactor = 1 - smoothness; a packed map's factor is 1; G = roughness (the map
+    itself when it fed smoothness through 1 - x, else 1 - map), B = metallic."""
+    plain = materialx.gltf_document([materialx.Material("p", metallic=0.25, smoothness=0.7)])
+    pbr = plain["materials"][0]["pbrMetallicRoughness"]
+    assert pbr["roughnessFactor"] == pytest.approx(0.3) and pbr["metallicFactor"] == 0.25
+    mat = materialx.Material("t", textures=TEXTURES)
+    pbr = materialx.gltf_document([mat])["materials"][0]["pbrMetallicRoughness"]
+    assert pbr["metallicFactor"] == 1.0 and pbr["roughnessFactor"] == 1.0
+    metal, rough_map = np.full((2, 2), 0.2), np.full((4, 4), 0.7)
+    px = materialx.metallic_roughness_pixels(metal, rough_map, invert=True)
+    assert px.shape == (4, 4, 3)
+    assert np.allclose(px[..., 1], 0.7) and np.allclose(px[..., 2], 0.2)
+    px = materialx.metallic_roughness_pixels(None, rough_map, invert=False)
+    assert np.allclose(px[..., 1], 0.3) and np.allclose(px[..., 2], 1.0)
+
+
+def test_names_are_valid_and_unique():
+    used = set()
+    assert materialx.valid_name("1 a", used) == "_1_a"
+    assert materialx.valid_name("1 a", used) == "_1_a_2"
+    assert materialx.valid_name("", used) == "material"
