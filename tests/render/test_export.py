@@ -168,10 +168,14 @@ def ctlab(*args):
 def test_export_materialx_validates(blends, tmp_path):
     """One .mtlx per Cook-Torrance material, each valid for MaterialX 1.39.5 and turned into
     OSL by its generator; the textures copied with their colour spaces (sRGB albedo, raw
-    roughness through 1 - x, a normal map of strength 0.5)."""
+    roughness through 1 - x, a normal map of strength 0.5); nothing written outside --out."""
     out = tmp_path / "mtlx"
+    before = {p: p.stat().st_mtime_ns for p in blends.iterdir()}
     run = ctlab("export", blends / "export.blend", "--format", "materialx", "--out", out)
     assert run.returncode == 0, run.stderr
+    # nothing written beside the inputs (no .blend1, no texture touched), only --out made
+    assert {p: p.stat().st_mtime_ns for p in blends.iterdir()} == before
+    assert [p.name for p in tmp_path.iterdir()] == ["mtlx"]
     names = sorted(p.name for p in out.glob("*.mtlx"))
     assert names == ["CT_Cook_Torrance.mtlx", "CT_Smith.mtlx", "CT_Textured.mtlx"], names
     assert sorted(p.name for p in (out / "textures").iterdir()) == [
