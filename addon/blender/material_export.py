@@ -23,6 +23,10 @@ from ..core.materialx import COLORSPACES, SURFACE_KEYS, Material, Texture
 from ..core.paths import safe_name
 
 
+# A packed image without a file name gets its format's extension.
+EXTENSIONS = {"PNG": ".png", "JPEG": ".jpg", "OPEN_EXR": ".exr", "HDR": ".hdr", "TIFF": ".tif"}
+
+
 @dataclass(frozen=True)
 class TextureFile:
     """An image to put in the export folder: its file there (``name``), and where its bytes
@@ -40,7 +44,7 @@ def _image_file(image: bpy.types.Image, mat_name: str, files: dict) -> str:
             return name
     packed = image.packed_file
     path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
-    ext = os.path.splitext(path)[1] or ".png"
+    ext = os.path.splitext(path)[1] or EXTENSIONS.get(image.file_format, ".png")
     stem = safe_name(os.path.splitext(os.path.basename(path))[0] or image.name, "texture")
     name, i = f"textures/{stem}{ext}", 1
     while name in files:

@@ -77,6 +77,8 @@ BUILD = textwrap.dedent(r'''
     nmap.inputs["Strength"].default_value = 0.5
     ntex = nt.nodes.new("ShaderNodeTexImage")
     ntex.image = image("normal", 0.5, "Non-Color")
+    ntex.image.pack()  # written out from the .blend's data
+    os.remove(os.path.join(out, "normal.png"))
     nt.links.new(ntex.outputs["Color"], nmap.inputs["Color"])
     nt.links.new(nmap.outputs["Normal"], model_node.surface_input(node, "normal"))
     obj("Box", m)
@@ -168,7 +170,8 @@ def ctlab(*args):
 def test_export_materialx_validates(blends, tmp_path):
     """One .mtlx per Cook-Torrance material, each valid for MaterialX 1.39.5 and turned into
     OSL by its generator; the textures copied with their colour spaces (sRGB albedo, raw
-    roughness through 1 - x, a normal map of strength 0.5); nothing written outside --out."""
+    roughness through 1 - x, a packed normal map of strength 0.5, written out from the
+    .blend); nothing written outside --out."""
     out = tmp_path / "mtlx"
     before = {p: p.stat().st_mtime_ns for p in blends.iterdir()}
     run = ctlab("export", blends / "export.blend", "--format", "materialx", "--out", out)
@@ -191,6 +194,9 @@ def test_export_materialx_validates(blends, tmp_path):
     text = (out / "CT_Textured.mtlx").read_text()
     assert 'colorspace="srgb_texture"' in text and "textures/paint.png" in text
     assert "normalmap" in text and "smoothness_invert" in text
+    assert compare.read_image(out / "textures" / "normal.png")[..., 0] == pytest.approx(
+        np.full((4, 4), 128 / 255), abs=1e-6
+    )
     assert '<input name="diffuse_lambert" type="integer" value="1"' in text
     assert "CT Cook-Torrance: G cook_torrance (written as height-correlated Smith)" in run.stdout
 
