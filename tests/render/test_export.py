@@ -13,7 +13,6 @@ core/materialx.py made the Smith renders differ by 0.55 (peak 1.06; bound 1e-3 o
 the diffuse switch fixed to Burley made the Lambert case differ by 0.0041 (bound 0.0011)."""
 
 import json
-import os
 import subprocess
 import sys
 import textwrap
@@ -23,6 +22,7 @@ import numpy as np
 import pytest
 
 from helpers import ROOT
+from materialx_check import materialx_check
 from reference_model import specular_albedo
 
 from addon.blender import compat, model_node, osl_shader, renderer, scene_builder
@@ -91,63 +91,6 @@ BUILD = textwrap.dedent(r'''
     bpy.context.object.data.materials.append(materials.principled_material("Floor"))
     bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "principled.blend"))
 ''')
-
-# MaterialX's own validation and OSL generation, in a child process without bpy.
-MTLX = textwrap.dedent(r'''
-    import json, sys
-    import MaterialX as mx
-    from MaterialX import PyMaterialXGenShader as gs, PyMaterialXGenOsl as go
-    search = mx.getDefaultDataSearchPath()
-    lib = mx.createDocument()
-    mx.loadLibraries(mx.getDefaultDataLibraryFolders(), search, lib)
-    include = search.find("libraries/stdlib/genosl/include")
-
-    def inline(text, seen):
-        """The generated OSL whole: its includes inlined once each (MaterialX's headers),
-        '#pragma once' dropped (Blender 5.2's OSL compiler crashes on it)."""
-        out = []
-        for line in text.splitlines():
-            s = line.strip()
-            if s.startswith("#pragma once"):
-                continue
-            if s.startswith("#include"):
-                name = s.split('"')[1]
-                if name not in seen:
-                    seen.add(name)
-                    out.append(inline(open(include.asString() + "/" + name).read(), seen))
-                continue
-            out.append(line)
-        return "\n".join(out)
-
-    out = {}
-    for path in sys.argv[1:]:
-        doc = mx.createDocument()
-        mx.readFromXmlFile(doc, path)
-        doc.setDataLibrary(lib)
-        ok, message = doc.validate()
-        gen = go.OslShaderGenerator.create()
-        ctx = gs.GenContext(gen)
-        ctx.registerSourceCodeSearchPath(search)
-        shader = next(n for n in doc.getNodes() if n.getType() == "surfaceshader")
-        osl = gen.generate("mtlx_" + shader.getName(), shader, ctx).getSourceCode(gs.PIXEL_STAGE)
-        osl = inline(osl, set())
-        out[path] = {"valid": ok, "message": message, "osl": osl,
-                     "version": mx.getVersionString()}
-    print(json.dumps(out))
-''')
-
-
-def materialx_check(paths) -> dict:
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    run = subprocess.run(
-        [sys.executable, "-c", MTLX, *map(str, paths)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
-    assert run.returncode == 0, run.stderr[-2000:]
-    return json.loads(run.stdout)
 
 
 @pytest.fixture(scope="module")
