@@ -1,4 +1,4 @@
-"""The Cook-Torrance materials of the open file as the export sees them (core.materialx
+"""The Cook-Torrance materials of the open file as the export sees them (core.export.network
 Material): each material's surface values, switches and the objects it is on, and the image
 textures wired into albedo, metallic, smoothness and normal, with their colour spaces.
 
@@ -19,7 +19,7 @@ import bpy
 
 from . import model_node
 from ..core.errors import UserError
-from ..core.materialx import COLORSPACES, SURFACE_KEYS, Material, Texture
+from ..core.export.network import COLORSPACES, SURFACE_KEYS, Material, Texture
 from ..core.paths import safe_name
 
 

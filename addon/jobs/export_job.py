@@ -1,7 +1,8 @@
 """``ctlab export FILE.blend --format materialx|usd|gltf --out DIR`` and the operator *Export
 Cook-Torrance as MaterialX*: the file's Cook-Torrance materials leave Blender
-(core/materialx.py says how the model maps onto MaterialX, USD and glTF;
-blender/material_export.py reads the materials).
+(core/export/network.py says how the model maps onto MaterialX; core/export/materialx.py,
+core/export/usd.py and core/export/gltf.py write the formats; blender/material_export.py
+reads the materials).
 
 - materialx: ``DIR/<material>.mtlx`` per material (nodedef, nodegraph, the material)
 - usd: ``DIR/<file>.usda``: a UsdShade Material per material with the MaterialX network,
@@ -18,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..blender import material_export
-from ..core import materialx
+from ..core.export import gltf, materialx, network, usd
 from ..core.errors import UserError
 from ..core.files import (
     atomic_path,
@@ -38,13 +39,13 @@ def plan_outputs(materials: list, fmt: str, out: Path, stem: str) -> dict:
     if fmt == "materialx":
         docs, used = {}, set()
         for mat in materials:
-            name = materialx.valid_name(safe_name(mat.name, "material"), used)
+            name = network.valid_name(safe_name(mat.name, "material"), used)
             docs[out / f"{name}.mtlx"] = materialx.mtlx_document(mat)
         return docs
     if fmt == "usd":
-        return {out / f"{stem}.usda": materialx.usda_document(materials)}
+        return {out / f"{stem}.usda": usd.usda_document(materials)}
     if fmt == "gltf":
-        return {out / f"{stem}.gltf": materialx.gltf_document(materials)}
+        return {out / f"{stem}.gltf": gltf.gltf_document(materials)}
     raise UserError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")
 
 
@@ -56,7 +57,7 @@ def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, i
     docs = plan_outputs(materials, fmt, out, stem)
     textures = {out / f.name: f for f in files}
     sources = [Path(f.source) for f in files if f.source]
-    packed = [materialx.metallic_roughness_name(m) for m in materials] if fmt == "gltf" else []
+    packed = [gltf.metallic_roughness_name(m) for m in materials] if fmt == "gltf" else []
     refuse_overwrite(
         list(inputs) + sources, list(docs) + list(textures) + [out / n for n in packed if n]
     )
@@ -82,13 +83,13 @@ def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, i
 
 
 def write_metallic_roughness(materials: list, out: Path) -> list:
-    """glTF's packed metallic-roughness images (core.materialx.metallic_roughness_pixels),
+    """glTF's packed metallic-roughness images (core.gltf.metallic_roughness_pixels),
     read from the textures already copied into ``out``."""
     from ..core.compare import read_image, write_png
 
     written = []
     for mat in materials:
-        name = materialx.metallic_roughness_name(mat)
+        name = gltf.metallic_roughness_name(mat)
         if name is None:
             continue
         maps = {
@@ -97,7 +98,7 @@ def write_metallic_roughness(materials: list, out: Path) -> list:
             if key in mat.textures
         }
         invert = "smoothness" in mat.textures and mat.textures["smoothness"].invert
-        pixels = materialx.metallic_roughness_pixels(
+        pixels = gltf.metallic_roughness_pixels(
             maps.get("metallic"), maps.get("smoothness"), invert
         )
         write_png(out / name, pixels)
@@ -125,9 +126,9 @@ def run_export(blend: Path, fmt: str, out: Path, log=None) -> dict:
         "materials": [
             {
                 "name": m.name,
-                "exact": materialx.exact(m),
+                "exact": network.exact(m),
                 "not_carried": (
-                    materialx.gltf_not_carried(m) if fmt == "gltf" else materialx.not_carried(m)
+                    gltf.gltf_not_carried(m) if fmt == "gltf" else network.not_carried(m)
                 ),
             }
             for m in materials

@@ -1,5 +1,5 @@
 """``ctlab export FILE.blend --format materialx|usd|gltf`` (addon/jobs/export_job.py, the model
-as MaterialX in addon/core/materialx.py) and its proof: every written .mtlx passes MaterialX's
+as MaterialX in addon/core/export/) and its proof: every written .mtlx passes MaterialX's
 own ``validate()`` (PyPI materialx, run in a child process without bpy: Blender's bundled
 MaterialX lacks the OSL generator and the two would clash), MaterialX's OSL generator turns the
 graph into OSL that Cycles compiles and renders equal to the model's ``scene`` transport for
@@ -9,8 +9,9 @@ the directional albedo residual of docs/model.md's table, computed here by brute
 own reader (Blender's bundled pxr). Bad input: one line, exit status 2, nothing written.
 
 Mutation check (done once): color0 = albedo instead of mix(0.04, albedo, metallic) in
-core/materialx.py made the Smith renders differ by 0.55 (peak 1.06; bound 1e-3 of it), and
-the diffuse switch fixed to Burley made the Lambert case differ by 0.0041 (bound 0.0011)."""
+core/export/network.py made the Smith renders differ by 0.55 (peak 1.06; bound 1e-3 of it),
+and the diffuse switch fixed to Burley made the Lambert case differ by 0.0041 (bound
+0.0011)."""
 
 import json
 import subprocess
@@ -26,7 +27,8 @@ from materialx_check import materialx_check
 from reference_model import specular_albedo
 
 from addon.blender import compat, model_node, osl_shader, renderer, scene_builder
-from addon.core import compare, materialx
+from addon.core import compare
+from addon.core.export import materialx, network
 from addon.core.model import ModelOptions
 from addon.core.settings import MatrixSettings, describe
 
@@ -284,7 +286,7 @@ def renders(uniform_hdri, tmp_path_factory):
         o["ctlab_col"]: o for o in scene.objects if o.get(scene_builder.TAG) and o.type == 'MESH'
     }
     cases = [
-        materialx.Material(name, albedo, metallic, smoothness, g_model=g, diffuse_model=d, energy=e)
+        network.Material(name, albedo, metallic, smoothness, g_model=g, diffuse_model=d, energy=e)
         for name, g, d, e, albedo, metallic, smoothness in CASES
     ]
     paths = []
