@@ -9,7 +9,9 @@ reads the materials).
   bound to a prim per object (named like the object; no geometry)
 - gltf: ``DIR/<file>.gltf``: metallic-roughness materials (no meshes)
 
-and the images they read in ``DIR/textures/``. Everything is read and checked before anything
+and the images they reference in ``DIR/textures/`` (only those: glTF's packed
+metallic-roughness image is made from the metallic and smoothness maps, which it does not
+reference). Everything is read and checked before anything
 is written (bad input: one line, exit status 2); each file is written whole (core.files); the
 .blend is opened, never saved.
 """
@@ -26,6 +28,7 @@ from ..core.files import (
     check_writable,
     copy_file,
     refuse_overwrite,
+    temporary_folder,
     write_json,
     write_text,
 )
@@ -55,11 +58,16 @@ def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, i
     if not materials:
         raise UserError("no Cook-Torrance material to export")
     docs = plan_outputs(materials, fmt, out, stem)
-    textures = {out / f.name: f for f in files}
+    if fmt == "gltf":  # the .gltf's images only: the packed image replaces the raw maps
+        uris = {img["uri"] for doc in docs.values() for img in doc.get("images", ())}
+        copied = [f for f in files if f.name in uris]
+        packed = [n for n in map(gltf.metallic_roughness_name, materials) if n is not None]
+    else:
+        copied, packed = files, []
+    textures = {out / f.name: f for f in copied}
     sources = [Path(f.source) for f in files if f.source]
-    packed = [gltf.metallic_roughness_name(m) for m in materials] if fmt == "gltf" else []
     refuse_overwrite(
-        list(inputs) + sources, list(docs) + list(textures) + [out / n for n in packed if n]
+        list(inputs) + sources, list(docs) + list(textures) + [out / n for n in packed]
     )
     check_writable(out)
     written = []
@@ -72,7 +80,7 @@ def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, i
                 Path(tmp).write_bytes(f.data)
         written.append(path)
     if fmt == "gltf":
-        written += write_metallic_roughness(materials, out)
+        written += write_metallic_roughness(materials, files, out)
     for path, doc in docs.items():
         if isinstance(doc, dict):
             write_json(path, doc)
@@ -82,27 +90,39 @@ def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, i
     return written
 
 
-def write_metallic_roughness(materials: list, out: Path) -> list:
-    """glTF's packed metallic-roughness images (core.gltf.metallic_roughness_pixels),
-    read from the textures already copied into ``out``."""
+def write_metallic_roughness(materials: list, files: list, out: Path) -> list:
+    """glTF's packed metallic-roughness images (core.export.gltf.metallic_roughness_pixels),
+    read from the maps' own files (a map packed in the .blend through a private temporary
+    file): the maps themselves are not written into ``out``, which does not reference them."""
     from ..core.compare import read_image, write_png
 
+    by_name = {f.name: f for f in files}
     written = []
-    for mat in materials:
-        name = gltf.metallic_roughness_name(mat)
-        if name is None:
-            continue
-        maps = {
-            key: read_image(out / mat.textures[key].file)[..., 0]
-            for key in ("metallic", "smoothness")
-            if key in mat.textures
-        }
-        invert = "smoothness" in mat.textures and mat.textures["smoothness"].invert
-        pixels = gltf.metallic_roughness_pixels(
-            maps.get("metallic"), maps.get("smoothness"), invert
-        )
-        write_png(out / name, pixels)
-        written.append(out / name)
+    with temporary_folder("ctlab-export-") as tmp:
+
+        def read(name: str):
+            f = by_name[name]
+            path = Path(f.source) if f.source else tmp / Path(name).name
+            if not f.source and not path.exists():
+                path.write_bytes(f.data)
+            return read_image(path)[..., 0]
+
+        for mat in materials:
+            name = gltf.metallic_roughness_name(mat)
+            if name is None:
+                continue
+            maps = {
+                key: read(mat.textures[key].file)
+                for key in ("metallic", "smoothness")
+                if key in mat.textures
+            }
+            invert = "smoothness" in mat.textures and mat.textures["smoothness"].invert
+            pixels = gltf.metallic_roughness_pixels(
+                maps.get("metallic"), maps.get("smoothness"), invert
+            )
+            check_writable((out / name).parent)  # textures/ may hold no other image
+            write_png(out / name, pixels)
+            written.append(out / name)
     return written
 
 

@@ -187,7 +187,9 @@ def test_export_usd_reads_back(blends, tmp_path):
 def test_export_gltf(blends, tmp_path):
     """glTF: baseColorFactor = albedo, metallicFactor, roughnessFactor = 1 - smoothness, the
     albedo and normal textures, metallic and roughness packed into one image as glTF wants
-    them (G roughness, B metallic); what glTF cannot carry listed in extras."""
+    them (G roughness, B metallic); what glTF cannot carry listed in extras; every file under
+    textures/ referenced by the .gltf (the raw roughness map, packed, is not copied: copying
+    every map, as before, failed here on rough.png)."""
     out = tmp_path / "gltf"
     run = ctlab("export", blends / "export.blend", "--format", "gltf", "--out", out)
     assert run.returncode == 0, run.stderr
@@ -213,6 +215,35 @@ def test_export_gltf(blends, tmp_path):
     assert "Burley (Disney) diffuse" in " ".join(
         by_name["CT Smith"]["extras"]["cook_torrance_lab"]["not_carried"]
     )
+    # only what the .gltf references: no stray raw map beside the packed image
+    uris = {img["uri"] for img in doc["images"]}
+    on_disk = {p.relative_to(out).as_posix() for p in (out / "textures").rglob("*")}
+    assert on_disk <= uris, on_disk - uris
+    assert sorted(p.name for p in out.iterdir()) == ["export.gltf", "textures"]
+
+
+def test_export_gltf_packs_a_map_from_the_blend(tmp_path):
+    """A roughness map packed in the .blend (bytes, no file) is read through a private
+    temporary file into glTF's metallic-roughness image (G = the map, wired through 1 - x),
+    and is not written itself: the folder holds the .gltf and the packed image only, even
+    with no other texture to make textures/ first."""
+    from addon.blender.material_export import TextureFile
+    from addon.jobs.export_job import write_export
+
+    src = tmp_path / "r.png"
+    compare.write_png(src, np.full((2, 3, 3), 0.7))
+    mat = network.Material(
+        "R", textures={"smoothness": network.Texture("textures/r.png", invert=True)}
+    )
+    files = [TextureFile("textures/r.png", data=src.read_bytes())]
+    out = tmp_path / "out"
+    written = write_export([mat], files, "gltf", out, "x")
+    names = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    assert names == ["textures/R_metallic_roughness.png", "x.gltf"], names
+    assert sorted(p.relative_to(out).as_posix() for p in written) == names
+    pixels = compare.read_image(out / "textures" / "R_metallic_roughness.png")
+    assert pixels[..., 1] == pytest.approx(np.full((2, 3), 179 / 255), abs=1e-6)
+    assert pixels[..., 2] == pytest.approx(np.ones((2, 3)))
 
 
 @pytest.mark.parametrize(
