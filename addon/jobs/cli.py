@@ -1,4 +1,5 @@
-"""The command line: ``render``, ``compare``, ``bake``, ``matrix``, ``plot``, ``scene``, and
+"""The command line: ``render``, ``compare``, ``bake``, ``matrix``, ``plot``, ``scene``,
+``export`` (jobs/export_job.py), and
 the batch jobs as task graphs: ``plan``, ``task``, ``merge`` (jobs/graph.py); scripts/ctlab.py
 is the entry. It maps arguments onto settings (core.settings) and runs the pipeline
 (jobs/pipeline.py; ``scene``: jobs/scene_job.py).
@@ -646,6 +647,24 @@ def cmd_scene(args) -> None:
     say(f"done: metrics.json, diff.png, materials.png; open {data['report']}")
 
 
+def cmd_export(args) -> None:
+    """A .blend's Cook-Torrance materials as MaterialX, USD or glTF (jobs/export_job.py)."""
+    from .export_job import run_export
+
+    blend = input_file(
+        args.blend, ".blend file", missing=f"no such file: {args.blend}; give a .blend file"
+    )
+    out = check_path(args.out, "--out")
+    say(f"export {blend}: its Cook-Torrance materials as {args.format} -> {out}")
+    data = run_export(blend, args.format, out, None if args.verbose else os.devnull)
+    for note in data["notes"]:
+        warn(note)
+    for m in data["materials"]:
+        what = "exact" if m["exact"] and not m["not_carried"] else "; ".join(m["not_carried"])
+        say(f"  {m['name']}: {what or 'exact'}")
+    say(f"done: {len(data['written'])} files in {out}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="ctlab", description="Cook-Torrance Lab batch tools")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -864,6 +883,18 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--camera", default=None, help="a camera object (default: the scene's)")
     s.add_argument("--verbose", action="store_true", help="show Blender's own output")
     s.set_defaults(func=cmd_scene)
+    from .export_job import FORMATS
+
+    e = sub.add_parser(
+        "export",
+        help="a .blend's Cook-Torrance materials as MaterialX (.mtlx per material), USD "
+        "(UsdShade materials with the MaterialX network) or glTF (metallic-roughness)",
+    )
+    e.add_argument("blend", help="the .blend file (opened, never written)")
+    e.add_argument("--format", required=True, choices=FORMATS, help="|".join(FORMATS))
+    e.add_argument("--out", required=True, help="output folder (the images go to textures/)")
+    e.add_argument("--verbose", action="store_true", help="show Blender's own output")
+    e.set_defaults(func=cmd_export)
     return parser
 
 
@@ -885,6 +916,7 @@ VALUE_FLAGS = {a.flag for a in SCENE_ARGS if not a.flag_only} | {
     "--camera",
     "--seed",
     "--workers",
+    "--format",
 }
 
 

@@ -1,0 +1,112 @@
+"""The model as glTF 2.0 (``ctlab export --format gltf``): metallic-roughness parameters of
+glTF's core material (docs/model.md "The model outside Blender"), metallic and roughness maps
+packed into one image as glTF wants them, and what glTF cannot carry in extras."""
+
+from __future__ import annotations
+
+from .network import Material, not_carried, valid_name
+
+
+def metallic_roughness_name(mat: Material) -> str | None:
+    """The glTF metallic-roughness image a material needs (textures/NAME), or None: glTF
+    packs roughness in G and metallic in B of one image (``metallic_roughness_pixels``)."""
+    if "metallic" not in mat.textures and "smoothness" not in mat.textures:
+        return None
+    return f"textures/{valid_name(mat.name, set())}_metallic_roughness.png"
+
+
+def metallic_roughness_pixels(metallic, smoothness, invert: bool):
+    """glTF's metallic-roughness image from the model's maps (numpy arrays of one channel,
+    or None where the input is a value, carried by the factor): G = roughness = 1 -
+    smoothness (the map itself when it fed smoothness through ``1 - x``), B = metallic, R = 1
+    (unused). Maps of different sizes are sampled at the larger one's texel centres."""
+    import numpy as np
+
+    maps = [m for m in (metallic, smoothness) if m is not None]
+    h = max(m.shape[0] for m in maps)
+    w = max(m.shape[1] for m in maps)
+
+    def at_size(m):
+        if m is None:
+            return np.ones((h, w), np.float32)
+        rows = ((np.arange(h) + 0.5) * m.shape[0] / h).astype(int)
+        cols = ((np.arange(w) + 0.5) * m.shape[1] / w).astype(int)
+        return m[rows][:, cols].astype(np.float32)
+
+    rough = at_size(smoothness)
+    if smoothness is not None and not invert:
+        rough = 1.0 - rough
+    return np.stack([np.ones((h, w), np.float32), rough, at_size(metallic)], axis=-1)
+
+
+def _f7(x) -> float:
+    """A float32 value as its 7 significant digits (0.8, not 0.800000011920929)."""
+    return float(f"{float(x):.7g}")
+
+
+def gltf_material(mat: Material, texture_index) -> dict:
+    """glTF's core material for the model's values: baseColorFactor = albedo, metallicFactor
+    = metallic, roughnessFactor = 1 - smoothness (glTF's roughness is perceptual, squared to
+    GGX's alpha like the model's pr); the albedo, normal and metallic-roughness textures (a
+    factor is 1 where its texture holds the values). ``texture_index(file)`` gives a
+    texture's index in the file. The switches glTF cannot carry go to extras."""
+    pbr = {
+        "baseColorFactor": [_f7(c) for c in mat.albedo[:3]] + [1.0],
+        "metallicFactor": _f7(mat.metallic),
+        "roughnessFactor": _f7(1.0 - float(mat.smoothness)),
+    }
+    out = {"name": mat.name, "pbrMetallicRoughness": pbr}
+    if "albedo" in mat.textures:
+        pbr["baseColorFactor"] = [1.0, 1.0, 1.0, 1.0]
+        pbr["baseColorTexture"] = {"index": texture_index(mat.textures["albedo"].file)}
+    packed = metallic_roughness_name(mat)
+    if packed is not None:
+        pbr["metallicRoughnessTexture"] = {"index": texture_index(packed)}
+        if "metallic" in mat.textures:
+            pbr["metallicFactor"] = 1.0
+        if "smoothness" in mat.textures:
+            pbr["roughnessFactor"] = 1.0
+    if "normal" in mat.textures:
+        tex = mat.textures["normal"]
+        out["normalTexture"] = {"index": texture_index(tex.file), "scale": _f7(tex.strength)}
+    out["extras"] = {
+        "cook_torrance_lab": {
+            "g_model": mat.g_model,
+            "diffuse_model": mat.diffuse_model,
+            "energy": mat.energy,
+            "units": mat.units,
+            "albedo": [_f7(c) for c in mat.albedo[:3]],
+            "smoothness": _f7(mat.smoothness),
+            "not_carried": gltf_not_carried(mat),
+        }
+    }
+    return out
+
+
+def gltf_not_carried(mat: Material) -> list:
+    """What glTF's core material (GGX, height-correlated Smith, Schlick F, Lambert diffuse,
+    F0 0.04 with a (1 - F) weighted diffuse) leaves out of this material."""
+    out = not_carried(mat)
+    if mat.diffuse_model != "lambert":
+        out.append("Burley (Disney) diffuse (glTF's diffuse is Lambert)")
+    return out
+
+
+def gltf_document(materials: list) -> dict:
+    """A minimal glTF 2.0 file holding the materials (no meshes)."""
+    images, textures, index = [], [], {}
+
+    def texture_index(file: str) -> int:
+        if file not in index:
+            images.append({"uri": file})
+            textures.append({"source": len(images) - 1})
+            index[file] = len(textures) - 1
+        return index[file]
+
+    doc = {
+        "asset": {"version": "2.0", "generator": "Cook-Torrance Lab (ctlab export)"},
+        "materials": [gltf_material(m, texture_index) for m in materials],
+    }
+    if images:
+        doc["images"], doc["textures"] = images, textures
+    return doc
