@@ -234,6 +234,9 @@ def on_depsgraph_update(scene, depsgraph=None) -> None:
             _materials[scene.name] = names
             return
         targets = [(m, n) for m, n in user_materials() if m.name not in seen]
+        _materials[scene.name] = names
+        if not targets:  # a new material of another kind
+            return
     else:
         targets = user_materials()
     _seen[scene.name] = state

@@ -215,6 +215,7 @@ def test_converted_file_renders_the_same_without_addon_or_cache(addon, tmp_path,
     assert np.isfinite(travelled).all()
     peak = float(reference.max())
     diff = np.abs(travelled - reference)
+    print(f"travelled against made: max |diff| {diff.max():.3g}, peak {peak:.3g}")
     # each sphere's own share: none may fail alone
     for i, (name, *_rest) in enumerate(SPHERES):
         cols = slice(i * W // 4, (i + 1) * W // 4)
