@@ -99,6 +99,8 @@ def principled_to_model(
             f"material {mat.name!r}: its surface is not a Principled BSDF; nothing to convert"
         )
     tree = mat.node_tree
+    if impl == "osl":  # the OSL shader renders black without it: the file renders as saved
+        model_node.use_osl(scene)
     notes = []
     for name, label, neutral in PRINCIPLED_UNMAPPED:
         sock = bsdf.inputs.get(name)

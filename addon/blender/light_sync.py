@@ -191,8 +191,13 @@ def add_residual_pass(scene: bpy.types.Scene) -> None:
 
 
 def user_materials():
-    """The materials that use the model, but the matrix builder's own."""
-    return [(mat, node) for mat, node in model_node.model_materials() if not mat.get(MATRIX_TAG)]
+    """The materials that use the model, but the matrix builder's own and those linked from
+    another file (their drivers and images are that file's to change)."""
+    return [
+        (mat, node)
+        for mat, node in model_node.model_materials()
+        if not mat.get(MATRIX_TAG) and mat.library is None
+    ]
 
 
 def _state(scene) -> tuple:
@@ -210,21 +215,35 @@ def _state(scene) -> tuple:
 
 
 _seen: dict = {}  # scene name -> the state last synced
+_materials: dict = {}  # scene name -> the names of the file's materials at that sync
 last_error: dict = {}  # scene name -> the last sync error (shown in the panels)
 
 
 @bpy.app.handlers.persistent
 def on_depsgraph_update(scene, depsgraph=None) -> None:
-    """Follow a new world, HDRI image or key Sun in every material that uses the model."""
+    """Follow a new world, HDRI image or key Sun in every material that uses the model, and
+    sync a material new to the file (appended from another file, whose drivers follow that
+    file's Sun and world, which came along with it) to this scene's."""
     if world_bake.busy():  # the world bake's own scene
         return
     state = _state(scene)
+    names = frozenset(bpy.data.materials.keys())
+    seen = _materials.get(scene.name)
     if _seen.get(scene.name) == state:
-        return
+        if seen is None or names <= seen:
+            _materials[scene.name] = names
+            return
+        targets = [(m, n) for m, n in user_materials() if m.name not in seen]
+        _materials[scene.name] = names
+        if not targets:  # a new material of another kind
+            return
+    else:
+        targets = user_materials()
     _seen[scene.name] = state
+    _materials[scene.name] = names
     last_error.pop(scene.name, None)
     env = Environment(scene)
-    for mat, _node in user_materials():
+    for mat, _node in targets:
         try:
             sync_material(mat, scene, env=env)
         except UserError as exc:
@@ -241,4 +260,5 @@ def unregister_handler() -> None:
     while on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(on_depsgraph_update)
     _seen.clear()
+    _materials.clear()
     last_error.clear()

@@ -328,6 +328,16 @@ def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bp
     return new
 
 
+def use_osl(scene: bpy.types.Scene) -> bool:
+    """Turn on Cycles' Open Shading Language for ``scene``, which the OSL shader needs to
+    render (without it Cycles renders the material black); returns whether it was off.
+    The one place that does it: the implementation switch, conversion, new materials."""
+    if scene.cycles.shading_system:
+        return False
+    scene.cycles.shading_system = True
+    return True
+
+
 def osl_unavailable_reason(scene: bpy.types.Scene) -> str | None:
     """Why the OSL shader cannot render in this scene's settings, or None when it can."""
     engine = scene.render.engine

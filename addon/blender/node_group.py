@@ -914,10 +914,28 @@ def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
             node.image = image
 
 
+def table_images() -> set:
+    """The images the model's groups read (their tables and bakes, set_bake), in any file:
+    the add-on makes them again from its cache when a material syncs."""
+    return {
+        node.image
+        for group in bpy.data.node_groups
+        if group.get(TAG) or group.get(LIGHT_GROUP) or group.get(CORRECTION_GROUP)
+        for node in group.nodes
+        if (BAKE_FILE in node or MODEL_TABLE in node) and getattr(node, "image", None)
+    }
+
+
 def _float_image(path: Path) -> bpy.types.Image:
+    """A baked file or table as an image, packed into the .blend (Image.pack): the file
+    renders the same on a machine without the add-on or its cache (a render farm), since
+    Cycles and EEVEE read a packed image's own bytes. The image keeps the cache path, which
+    need not exist there."""
     image = bpy.data.images.load(str(path), check_existing=True)
     if image.colorspace_settings.name != "Non-Color":  # setting it reloads the image
         image.colorspace_settings.name = "Non-Color"
     if image.use_half_precision:
         image.use_half_precision = False  # EEVEE: keep 32-bit floats on the GPU
+    if image.packed_file is None:
+        image.pack()
     return image

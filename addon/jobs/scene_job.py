@@ -38,7 +38,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ..blender import convert, light_sync, model_node, osl_shader, renderer
+from ..blender import convert, light_sync, model_node, node_group, osl_shader, renderer
 from ..core.compare import ciede2000, heatmap, metrics, read_image, srgb_to_lab, write_png
 from ..core.errors import UserError
 from ..core.files import (
@@ -203,10 +203,13 @@ def check_data(path: Path) -> list:
             "a copy"
         )
     files = []
+    ours = node_group.table_images()  # the model's tables and bakes: made again when it syncs
     for image in bpy.data.images:
         if image.users == 0 or image.source not in ('FILE', 'SEQUENCE', 'MOVIE', 'TILED'):
             continue
         if image.packed_file is not None or len(getattr(image, "packed_files", ())):
+            continue
+        if image in ours:
             continue
         for f in image_files(image):
             if not f or not os.path.isfile(f):

@@ -1,13 +1,14 @@
 """Registration of everything the add-on adds to Blender, and its exact removal: classes
-(operators, panels, preferences), properties, the Add-menu entry, the lighting handler and
-any background job. Unregistering leaves nothing behind and re-registering works."""
+(operators, panels, preferences), properties, the Add-menu entry, the lighting handler, the
+saving handlers that let a file travel (blender/travel.py) and any background job.
+Unregistering leaves nothing behind and re-registering works."""
 
 from __future__ import annotations
 
 import bpy
 
 from . import operators, panels, preferences, properties
-from ..blender import light_sync, osl_shader
+from ..blender import light_sync, osl_shader, travel
 
 CLASSES = (preferences.CTLAB_AddonPreferences,) + operators.CLASSES + panels.PANELS
 
@@ -23,11 +24,13 @@ def register():
     for menu, draw in panels.MENU_ENTRIES:
         getattr(bpy.types, menu).append(draw)
     light_sync.register_handler()
+    travel.register_handlers()
 
 
 def unregister():
     operators.stop_jobs()
     light_sync.unregister_handler()
+    travel.unregister_handlers()
     for menu, draw in panels.MENU_ENTRIES:
         getattr(bpy.types, menu).remove(draw)
     properties.unregister()

@@ -66,7 +66,11 @@ class CTLAB_OT_new_material(bpy.types.Operator):
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
         _assign(context.object, mat)
-        self.report({'INFO'}, f"New {IMPLEMENTATION_LABELS[impl][0]} material {mat.name!r}")
+        self.report(
+            {'INFO'},
+            f"New {IMPLEMENTATION_LABELS[impl][0]} material {mat.name!r}"
+            + _osl_note(context.scene, impl == "osl"),
+        )
         return {'FINISHED'}
 
 
@@ -176,15 +180,28 @@ class CTLAB_OT_switch_implementation(bpy.types.Operator):
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
-        if self.target == "osl":
-            context.scene.cycles.shading_system = True
         note = (
             " (reference indirect light became split-sum)"
             if was_reference and self.target == "nodes"
             else ""
-        )
+        ) + _osl_note(context.scene, self.target == "osl")
         self.report({'INFO'}, f"{mat.name}: now the {IMPLEMENTATION_LABELS[self.target][0]}" + note)
         return {'FINISHED'}
+
+
+def _osl_said(scene, turned_on: bool) -> str:
+    """What a report adds for a material now carried by the OSL shader: that the scene's Open
+    Shading Language was turned on, and what else keeps it from rendering."""
+    reason = model_node.osl_unavailable_reason(scene)
+    return ("; Open Shading Language turned on (Render Properties)" if turned_on else "") + (
+        f"; it will not render here: {reason}" if reason else ""
+    )
+
+
+def _osl_note(scene, osl: bool) -> str:
+    """For a material now carried by the OSL shader: turn on the scene's Open Shading
+    Language (model_node.use_osl), and say so (_osl_said)."""
+    return _osl_said(scene, model_node.use_osl(scene)) if osl else ""
 
 
 def _scope_materials(context, scope: str) -> list:
@@ -204,6 +221,10 @@ class _Convert:
 
     def convert(self, context, mat) -> list:
         raise NotImplementedError
+
+    def note(self, context) -> str:
+        """Said after the count of converted materials."""
+        return ""
 
     def execute(self, context):
         mats = _scope_materials(context, self.scope)
@@ -226,6 +247,7 @@ class _Convert:
         message = f"converted {done} material{'s' * (done != 1)}"
         if skipped:
             message += f"; skipped {', '.join(skipped)} (nothing to convert)"
+        message += self.note(context)
         self.report({'INFO'}, message)
         return {'FINISHED'} if done else {'CANCELLED'}
 
@@ -244,6 +266,17 @@ class CTLAB_OT_convert_to_cook_torrance(_Convert, bpy.types.Operator):
         from ...blender.convert import principled_to_model
 
         return principled_to_model(mat, context.scene, _implementation(self.implementation))
+
+    def note(self, context) -> str:
+        # principled_to_model turns OSL on (model_node.use_osl) where it was off
+        if _implementation(self.implementation) != "osl":
+            return ""
+        scene = context.scene
+        return _osl_said(scene, scene.cycles.shading_system and not self._osl_was_on)
+
+    def execute(self, context):
+        self._osl_was_on = bool(context.scene.cycles.shading_system)
+        return super().execute(context)
 
 
 class CTLAB_OT_convert_to_principled(_Convert, bpy.types.Operator):
