@@ -131,7 +131,8 @@ def fill_defaults(args, job: str) -> None:
             setattr(args, key, value)
 
 
-def _vector(values) -> str:
+def vector_text(values) -> str:
+    """A vector as the command line writes it: "1.0,0.766,0.336"."""
     return ",".join(map(str, values))
 
 
@@ -143,7 +144,9 @@ SAMPLES = Option(
 HDRI = Option("--hdri", "equirectangular HDRI (default: Blender's forest.exr)", default="")
 HDRI_STRENGTH = Option("--hdri-strength", "the world's strength", float, 1.0)
 HDRI_ROTATION = Option("--hdri-rotation", "degrees about Z", float, 0.0)
-SUN_DIR = Option("--sun-dir", "X,Y,Z toward the Sun", default=_vector(MatrixSettings.sun_to_light))
+SUN_DIR = Option(
+    "--sun-dir", "X,Y,Z toward the Sun", default=vector_text(MatrixSettings.sun_to_light)
+)
 SUN_STRENGTH = Option("--sun-strength", "Sun irradiance (W/m^2)", float, 1.0)
 LIGHTS = Option(
     "--lights",
@@ -153,7 +156,7 @@ LIGHTS = Option(
     default="",
 )
 ALBEDO = Option(
-    "--albedo", "R,G,B linear albedo (default: gold)", default=_vector(model.MATRIX_ALBEDO)
+    "--albedo", "R,G,B linear albedo (default: gold)", default=vector_text(model.MATRIX_ALBEDO)
 )
 IBL = Option(
     "--ibl",

@@ -19,6 +19,7 @@ from .options import (
     Command,
     check_path,
     parse_vector,
+    vector_text,
 )
 from .output import events, say
 from .. import pipeline
@@ -70,7 +71,7 @@ COMMAND = Command(
         SMOOTHNESS,
         # a plot shows one material, by default the model's grey rather than the matrix's gold
         ALBEDO.but(
-            default=",".join(map(str, model.DEFAULT_ALBEDO)),
+            default=vector_text(model.DEFAULT_ALBEDO),
             help="R,G,B linear albedo, each 0 to 1 (default %(default)s)",
         ),
         G,
