@@ -26,6 +26,7 @@ from addon.core import cache, files, paths
 from addon.core.errors import UserError
 from addon.core.hdri import write_float_exr
 from addon.jobs import cli
+from addon.jobs.cli.options import parse_grid, parse_vector
 
 CTLAB = [sys.executable, str(ROOT / "scripts" / "ctlab.py")]
 TINY = ["--grid", "1x1", "--size", "32", "--samples", "1"]
@@ -644,12 +645,12 @@ def test_numbers_in_every_unicode_digit_class(digits):
         else:
             assert ascii_only and value == int(digits), digits
     try:
-        cli.parse_grid(f"{digits}x1")
+        parse_grid(f"{digits}x1")
         assert ascii_only
     except UserError:
         assert not ascii_only
     try:
-        cli.parse_vector(f"{digits},0,1", 3, "sun direction")
+        parse_vector(f"{digits},0,1", 3, "sun direction")
         assert ascii_only
     except UserError:
         assert not ascii_only

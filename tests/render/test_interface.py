@@ -146,10 +146,10 @@ def test_the_cli_and_the_ui_take_their_vocabulary_from_the_model():
     the command line's choices, the material panel's dropdowns, the preferences' and the
     operators' items are built from it, in its order."""
     from addon.core import model
-    from addon.jobs import cli
+    from addon.jobs.cli.parser import build_parser
     from addon.ui import operators, preferences, properties
 
-    parser = cli.build_parser()
+    parser = build_parser()
     assert _choices(parser, "render", "shader") == model.SHADERS == ("osl", "nodes", "principled")
     assert _choices(parser, "plot", "shader") == model.IMPLEMENTATIONS
     assert _choices(parser, "scene", "shader") == model.IMPLEMENTATIONS

@@ -1,6 +1,6 @@
 """Settings as data (addon/core/settings.py) and the command line that makes them: validation
 once at construction, overrides, the matrix's geometry, and command lines built from the same
-table the parser reads (addon/jobs/cli.py)."""
+table the parser reads (addon/jobs/cli/options.py, addon/jobs/cli/parser.py)."""
 
 import math
 
@@ -9,7 +9,8 @@ import pytest
 from addon.core.errors import UserError
 from addon.core.model import ModelOptions
 from addon.core.settings import MatrixSettings, describe, matrix_values, with_overrides
-from addon.jobs import cli
+from addon.jobs.cli.options import parse_vector
+from addon.jobs.cli.parser import argv, build_parser
 
 
 def test_settings_are_validated_when_made():
@@ -74,11 +75,38 @@ def test_the_matrix_layout_metallic_by_column_smoothness_by_row():
 def test_a_built_command_line_parses_back_to_its_values(values):
     """argv() writes --flag=value from the parser's own table: negative numbers and lists
     starting with "-" survive (they used to be read as options), and every value returns."""
-    args = cli.build_parser().parse_args(cli.argv("matrix", "--out", "/tmp/x", **values))
+    args = build_parser().parse_args(argv("matrix", "--out", "/tmp/x", **values))
     for dest, want in values.items():
         got = getattr(args, dest)
         if isinstance(want, tuple):
-            got = cli.parse_vector(got, 3, dest)
+            got = parse_vector(got, 3, dest)
         assert got == pytest.approx(want) if isinstance(want, (float, tuple)) else got == want
     with pytest.raises(KeyError):
-        cli.argv("matrix", sun_direction=(0, 0, 1))  # no such option: fails here
+        argv("matrix", sun_direction=(0, 0, 1))  # no such option: fails here
+
+
+def test_every_option_that_takes_a_value_takes_a_negative_one():
+    """A typed "-0.5" or "-1,0,0" after any option of any command that takes a value is that
+    value (``--flag -0.5`` is joined into ``--flag=-0.5``), read from argparse's own actions,
+    not from the option table the joining is derived from: an option missing from it (the
+    old hand-kept list's failure mode; mutated: dropping --seed from VALUE_FLAGS fails here)
+    would be read as a flag followed by an unknown option. A switch is never joined."""
+    import argparse
+
+    from addon.jobs.cli.parser import join_negative_values
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    seen = set()
+    for name, command in sub.choices.items():
+        for action in command._actions:
+            if not action.option_strings or action.dest == "help":
+                continue
+            for flag in action.option_strings:
+                seen.add(flag)
+                joined = join_negative_values([flag, "-0.5,-1,2"])
+                if action.nargs == 0:
+                    assert joined == [flag, "-0.5,-1,2"], (name, flag)
+                else:
+                    assert joined == [f"{flag}=-0.5,-1,2"], (name, flag)
+    assert {"--seed", "--sun-dir", "--hdri-rotation", "--metallic", "--workers"} <= seen

@@ -58,7 +58,7 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
     def execute(self, context):
         from ...core.files import check_writable
         from ...jobs import background_job
-        from ...jobs.cli import argv as job_argv
+        from ...jobs.cli.parser import argv as job_argv
 
         if _comparison_running(self):
             return {'CANCELLED'}

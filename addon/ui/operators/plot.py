@@ -43,11 +43,11 @@ def plot_command(node, out: Path, compare_g: bool = False) -> tuple:
     options = {
         k: model_node.get_option(node, k) for k in ("g_model", "diffuse_model", "units", "energy")
     }
-    from ...jobs.cli import argv as job_argv
+    from ...jobs.cli.parser import argv as job_argv
 
     if compare_g:
         options["compare"] = ",".join(f"g={g}" for g in G_MODELS if g != options["g_model"])
-    # written from the command line's own table (jobs/cli.py argv)
+    # written from the command line's own table (jobs/cli/parser.py argv)
     argv = job_argv("plot", out=out, **values, **options, shader=model_node.implementation(node))
     return argv, notes
 

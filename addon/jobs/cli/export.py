@@ -1,0 +1,37 @@
+"""``ctlab export``: a .blend's Cook-Torrance materials as MaterialX, USD or glTF
+(jobs/export_job.py)."""
+
+from __future__ import annotations
+
+import os
+
+from .options import BLEND, FORMAT, OUT, VERBOSE, Command, check_path
+from .output import say, warn
+from ...core.paths import input_file
+
+
+def run(args) -> None:
+    """A .blend's Cook-Torrance materials as MaterialX, USD or glTF (jobs/export_job.py)."""
+    from ..export_job import run_export
+
+    blend = input_file(
+        args.blend, ".blend file", missing=f"no such file: {args.blend}; give a .blend file"
+    )
+    out = check_path(args.out, "--out")
+    say(f"export {blend}: its Cook-Torrance materials as {args.format} -> {out}")
+    data = run_export(blend, args.format, out, None if args.verbose else os.devnull)
+    for note in data["notes"]:
+        warn(note)
+    for m in data["materials"]:
+        what = "exact" if m["exact"] and not m["not_carried"] else "; ".join(m["not_carried"])
+        say(f"  {m['name']}: {what or 'exact'}")
+    say(f"done: {len(data['written'])} files in {out}")
+
+
+COMMAND = Command(
+    "export",
+    "a .blend's Cook-Torrance materials as MaterialX (.mtlx per material), USD (UsdShade "
+    "materials with the MaterialX network) or glTF (metallic-roughness)",
+    (BLEND, FORMAT, OUT.but(help="output folder (the images go to textures/)"), VERBOSE),
+    run,
+)

@@ -1,0 +1,34 @@
+"""``ctlab``'s entry (scripts/ctlab.py, the background job): parse, fill the job's defaults,
+run the command; bad input is one line and exit status 2, a cancel exit status 130."""
+
+from __future__ import annotations
+
+import sys
+
+from .options import fill_defaults
+from .parser import build_parser, join_negative_values
+from ...core.errors import Cancelled, UserError
+
+EXIT_BAD_INPUT = 2
+EXIT_CANCELLED = 130
+
+
+def main(argv_=None) -> int:
+    parser = build_parser()
+    argv_ = sys.argv[1:] if argv_ is None else list(argv_)
+    try:
+        try:
+            args = parser.parse_args(join_negative_values(argv_))
+        except SystemExit as exc:  # --help
+            return EXIT_BAD_INPUT if exc.code else 0
+        if args.command != "plan":  # plan's job is its argument: it fills them itself
+            fill_defaults(args, "parity" if getattr(args, "parity", False) else "matrix")
+        args.func(args)
+    except UserError as exc:
+        one_line = " ".join(str(exc).split())  # a library's message may hold newlines
+        print(f"ctlab: error: {one_line}", file=sys.stderr, flush=True)
+        return EXIT_BAD_INPUT
+    except (Cancelled, KeyboardInterrupt):
+        print("ctlab: cancelled; finished outputs are kept", file=sys.stderr, flush=True)
+        return EXIT_CANCELLED
+    return 0
