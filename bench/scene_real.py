@@ -153,11 +153,12 @@ def _child_render(blend: str, side: str, config: str, out: str, size: int, sampl
     """One render: Principled or every material converted; prints its timings as JSON."""
     import bpy
 
-    from addon.blender import convert, model_node, node_group, renderer
-    from addon.jobs import scene_job
+    from addon.blender import comparison_render, convert, model_node, node_group, renderer
+    from addon.blender.user_blend import open_blend
+    from addon.jobs.scene_job import SceneJob
 
     impl, osl, setting = CONFIGS[config]
-    scene = scene_job.open_blend(Path(blend), os.devnull)
+    scene = open_blend(Path(blend), os.devnull)
     mats = [m for m in bpy.data.materials if convert.surface_principled(m) is not None]
     if setting == "exact":  # single-scatter GGX: the model's own closures, energy none
         for mat in mats:
@@ -175,8 +176,10 @@ def _child_render(blend: str, side: str, config: str, out: str, size: int, sampl
         info["energy"] = sorted({model_node.get_option(model_node.find(m), "energy") for m in mats})
         group = bpy.data.node_groups.get(node_group.load_description()["group"]["name"])
         info["group_nodes"] = None if group is None else _count_nodes(group)
-    job = scene_job.SceneJob(blend=Path(blend), out=Path(out), size=size, samples=samples)
-    scene_job.configure(scene, scene.camera, job, osl)
+    job = SceneJob(blend=Path(blend), out=Path(out), size=size, samples=samples)
+    comparison_render.configure(
+        scene, scene.camera, job.size, job.samples, job.seed, osl, job.notes
+    )
     d = renderer.render(scene, Path(out), {"side": side}, os.devnull)
     info.update({k: d.get(k) for k in ("render_seconds", "sync_seconds", "cycles_render_seconds")})
     print("RESULT " + json.dumps(info), flush=True)

@@ -1,13 +1,26 @@
 """What the tests share besides fixtures: the repository's root, a render of the sphere matrix
-through the real pipeline, the sphere mask of a cell, bad HDRIs. Importing this module starts
-no Blender; ``render`` does."""
+through the real pipeline, the sphere mask of a cell, bad HDRIs, and what the bad-input tests
+share (the command as a process, one error line, a folder's listing, a tiny HDRI, Hypothesis'
+settings). Importing this module starts no Blender; ``render`` does."""
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
+from hypothesis import HealthCheck, settings
 
 ROOT = Path(__file__).resolve().parent.parent
+CTLAB = [sys.executable, str(ROOT / "scripts" / "ctlab.py")]  # the command, as a process
+TINY = ["--grid", "1x1", "--size", "32", "--samples", "1"]
+# Hypothesis for the bad-input properties: many cheap examples, the same ones every run
+FAST = settings(
+    max_examples=300,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 
 
 def render(
@@ -127,3 +140,32 @@ def fake_render(folder, variant="good", size=32):
     text = {"badjson": "{not json", "schema": "{}"}.get(variant, json.dumps(scene))
     (folder / "scene.json").write_text(text)
     return folder
+
+
+def one_line(capsys, code, expect=None):
+    """The command failed as bad input: exit 2, exactly one error line, no traceback."""
+    from addon.jobs import cli
+
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == cli.EXIT_BAD_INPUT, err
+    assert len(lines) == 1 and lines[0].startswith("ctlab: error: "), err
+    if expect:
+        assert expect in lines[0], lines[0]
+    return lines[0]
+
+
+def listing(root: Path) -> set:
+    """Every path under ``root``."""
+    return set(root.rglob("*"))
+
+
+def tiny_hdri(path: Path, nan=False) -> Path:
+    """A 32x16 HDRI of ones (one NaN where ``nan``)."""
+    from addon.core.hdri import write_float_exr
+
+    px = np.ones((16, 32, 3), np.float32)
+    if nan:
+        px[2, 3, 1] = np.nan
+    write_float_exr(path, px)
+    return path

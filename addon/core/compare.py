@@ -7,6 +7,10 @@ Metrics (per cell over the pixels inside 0.95 of the sphere radius, and over all
 - PSNR of the displayed colours (render.png, 0..1, peak 1);
 - mean CIEDE2000 of the displayed colours (sRGB -> CIE Lab, D65), after Sharma, Wu & Dalal,
   "The CIEDE2000 color-difference formula: implementation notes", 2005.
+
+And per material of a user's scene (``ctlab scene``): the Material Index pass read from a
+multilayer EXR, the same metrics and the luminance ratio over each material's mask, the noise
+floor and the CIEDE2000 of the mean colour, the map of the masks (materials.png).
 """
 
 from __future__ import annotations
@@ -278,3 +282,105 @@ def compare(dir_a: Path, dir_b: Path, out_dir: Path) -> dict:
         write_png_to(png, heatmap(de), out_dir / "diff.png")
         js.write_text(json_text(result), encoding="utf-8")
     return result
+
+
+# --- Per material of a user's scene (``ctlab scene``) ---------------------------------
+
+# Colours of the compared materials in materials.png (others grey, the world black).
+PALETTE = (
+    (0.90, 0.30, 0.25),
+    (0.25, 0.60, 0.95),
+    (0.35, 0.80, 0.35),
+    (0.95, 0.75, 0.20),
+    (0.70, 0.40, 0.85),
+    (0.20, 0.80, 0.80),
+    (0.95, 0.50, 0.70),
+    (0.60, 0.45, 0.25),
+)
+OTHER_GREY = 0.35
+INDEX_CHANNELS = ("IndexMA.X", "Material Index.X")  # 4.5; 5.x
+
+
+def read_material_index(path: Path) -> np.ndarray:
+    """The Material Index pass of a multilayer EXR (all parts searched) as int (h, w)."""
+    OIIO = oiio()
+    inp = OIIO.ImageInput.open(str(path))
+    if inp is None:
+        raise UserError(f"cannot read {path}: {OIIO.geterror().strip()}")
+    try:
+        part = 0
+        while inp.seek_subimage(part, 0):
+            spec = inp.spec()
+            for c, name in enumerate(spec.channelnames):
+                if any(name == ch or name.endswith("." + ch) for ch in INDEX_CHANNELS):
+                    px = inp.read_image(part, 0, c, c + 1, OIIO.FLOAT)
+                    px = np.asarray(px, dtype=np.float32).reshape(spec.height, spec.width)
+                    return np.rint(px).astype(np.int32)
+            part += 1
+    finally:
+        inp.close()
+    raise UserError(f"{path} holds no Material Index pass; Blender did not render it")
+
+
+def _luminance(img: np.ndarray, mask: np.ndarray):
+    if not mask.any():
+        return None
+    return float(np.mean(img[mask].astype(np.float64) @ np.array(REC709_LUMINANCE)))
+
+
+def measure(lin_m, disp_m, lin_p, disp_p, de, mask) -> dict:
+    """compare.metrics (model as A, Principled as B) and the luminance ratio model/Principled
+    over a mask; None where the mask is empty."""
+    y_m, y_p = _luminance(lin_m, mask), _luminance(lin_p, mask)
+    out = {
+        "pixels": int(mask.sum()),
+        "luminance_model": y_m,
+        "luminance_principled": y_p,
+        "luminance_ratio": (y_m / y_p) if y_m is not None and y_p else None,
+    }
+    if mask.any():
+        out.update(metrics(lin_m, lin_p, disp_m, disp_p, de, mask))
+    else:
+        out.update(
+            {
+                k: None
+                for k in (
+                    "mae",
+                    "rmse",
+                    "rel_luminance_error",
+                    "psnr_db",
+                    "ciede2000_mean",
+                    "ciede2000_p95",
+                )
+            }
+        )
+    return out
+
+
+def what_numbers_mean(lin_p, lin_p2, disp_m, disp_p, de_noise, mask) -> dict:
+    """Beside the per-pixel mean CIEDE2000, what a reader needs to weigh it: the noise floor,
+    the same measures between Principled and Principled rendered again with another seed
+    (the same scene, so all of it is Monte Carlo noise), and the CIEDE2000 of the mask's
+    mean displayed colours, model against Principled (noise averages out of a mean, not out
+    of the per-pixel mean: a pixel's noise adds to its difference)."""
+    if not mask.any():
+        return dict.fromkeys(
+            ("noise_floor_ciede2000_mean", "noise_floor_luminance_ratio", "ciede2000_of_mean")
+        )
+    mean_m, mean_p = (np.mean(d[mask][:, :3].astype(np.float64), axis=0) for d in (disp_m, disp_p))
+    y_p, y_p2 = _luminance(lin_p, mask), _luminance(lin_p2, mask)
+    lab_m, lab_p = (srgb_to_lab(c.reshape(1, 1, 3)) for c in (mean_m, mean_p))
+    return {
+        "noise_floor_ciede2000_mean": float(np.mean(de_noise[mask])),
+        "noise_floor_luminance_ratio": (y_p2 / y_p) if y_p else None,
+        "ciede2000_of_mean": float(ciede2000(lab_m, lab_p).ravel()[0]),
+    }
+
+
+def mask_image(index: np.ndarray, entries: list) -> np.ndarray:
+    """materials.png: each compared material in its palette colour, other materials grey,
+    the world (index 0) black."""
+    img = np.where((index > 0)[..., None], OTHER_GREY, 0.0) * np.ones(3)
+    for e in entries:
+        img[index == e["pass_index"]] = e["mask_colour"]
+    return img

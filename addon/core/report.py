@@ -19,15 +19,15 @@ def _table(metrics: dict) -> str:
         rows.append(
             f"<tr><td>{c['row']}</td><td>{c['col']}</td><td>{c['metallic']:.3f}</td>"
             f"<td>{c['smoothness']:.3f}</td><td>{c['mae']:.4f}</td><td>{c['rmse']:.4f}</td>"
-            f"<td>{_fmt(c['rel_luminance_error'], '+.1%')}</td>"
-            f"<td>{_fmt(c['psnr_db'], '.2f')}</td><td>{c['ciede2000_mean']:.2f}</td>"
+            f"<td>{fmt_value(c['rel_luminance_error'], '+.1%')}</td>"
+            f"<td>{fmt_value(c['psnr_db'], '.2f')}</td><td>{c['ciede2000_mean']:.2f}</td>"
             f"<td>{c['ciede2000_p95']:.2f}</td></tr>"
         )
     o = metrics["overall"]
     rows.append(
         f"<tr class='all'><td colspan=4>all cells</td><td>{o['mae']:.4f}</td>"
-        f"<td>{o['rmse']:.4f}</td><td>{_fmt(o['rel_luminance_error'], '+.1%')}</td>"
-        f"<td>{_fmt(o['psnr_db'], '.2f')}</td>"
+        f"<td>{o['rmse']:.4f}</td><td>{fmt_value(o['rel_luminance_error'], '+.1%')}</td>"
+        f"<td>{fmt_value(o['psnr_db'], '.2f')}</td>"
         f"<td>{o['ciede2000_mean']:.2f}</td><td>{o['ciede2000_p95']:.2f}</td></tr>"
     )
     head = (
@@ -38,7 +38,8 @@ def _table(metrics: dict) -> str:
     return f"<table>{head}{''.join(rows)}</table>"
 
 
-def _fmt(value, fmt: str) -> str:
+def fmt_value(value, fmt: str) -> str:
+    """A number for a table cell; None as a dash."""
     return "&ndash;" if value is None else format(value, fmt)
 
 
@@ -58,7 +59,7 @@ def _grid(metrics: dict, key: str, fmt: str) -> str:
     body = "".join(
         "<tr><th>"
         + f"{smooth[i]:.2f}</th>"
-        + "".join(f"<td>{_fmt(value[(i, j)], fmt)}</td>" for j in range(cols))
+        + "".join(f"<td>{fmt_value(value[(i, j)], fmt)}</td>" for j in range(cols))
         + "</tr>"
         for i in range(rows)
     )
@@ -90,9 +91,9 @@ def _summary(metrics: dict) -> str:
     o = metrics["overall"]
     return (
         f"Over all sphere pixels: mean &Delta;E00 <b>{o['ciede2000_mean']:.2f}</b> "
-        f"(95th percentile {o['ciede2000_p95']:.2f}), PSNR {_fmt(o['psnr_db'], '.2f')} dB "
+        f"(95th percentile {o['ciede2000_p95']:.2f}), PSNR {fmt_value(o['psnr_db'], '.2f')} dB "
         f"(displayed "
-        f"colours), relative luminance error {_fmt(o['rel_luminance_error'], '+.1%')}, MAE "
+        f"colours), relative luminance error {fmt_value(o['rel_luminance_error'], '+.1%')}, MAE "
         f"{o['mae']:.4f} and RMSE {o['rmse']:.4f} (linear values)."
     )
 

@@ -128,7 +128,7 @@ def write_metallic_roughness(materials: list, files: list, out: Path) -> list:
 
 def run_export(blend: Path, fmt: str, out: Path, log=None) -> dict:
     """Open ``blend`` (never saved), read its Cook-Torrance materials, write the export."""
-    from .scene_job import check_blend_file, open_blend
+    from ..blender.user_blend import check_blend_file, open_blend
 
     if fmt not in FORMATS:
         raise UserError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")

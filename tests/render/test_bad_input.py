@@ -162,7 +162,7 @@ CLI_CASES = {
     "plot-view": (["plot", "--view", "full"], "view 'full' cannot be sliced"),
     "plot-shader": (["plot", "--shader", "principled"], "invalid choice: 'principled'"),
     "plot-out-unwritable": (["plot", "--out", "@FILE/sub"], "output folder not writable"),
-    # the one path gate (core/paths.py; tests/render/test_hardening2.py has the properties)
+    # the one path gate (core/paths.py; tests/render/test_paths.py has the properties)
     "path-blend-relative": (
         RENDER + ["--hdri", "//sky.exr"],
         "starts with '//', which Blender reads as relative",
@@ -222,15 +222,37 @@ OPERATOR_CASES = (
 )
 
 
-def test_the_docs_table_and_these_tests_list_the_same_cases():
-    from test_hardening2 import CASES as HARDENING_CASES
-    from test_job_folder_input import CASES as JOB_FOLDER_CASES
+# The test files whose CASES (ID -> the test) hold rows of docs/bad-input.md, by subject
+CASE_MODULES = (
+    "test_paths",
+    "test_writes",
+    "test_cache_entries",
+    "test_signals",
+    "test_job_folder_input",
+)
 
+
+def _case_modules():
+    import importlib
+
+    return [importlib.import_module(name) for name in CASE_MODULES]
+
+
+def test_the_docs_table_and_these_tests_list_the_same_cases():
     table = (ROOT / "docs" / "bad-input.md").read_text()
     documented = set(re.findall(r"^\| `([a-z0-9-]+)` \|", table, re.M))
-    assert documented == set(CLI_CASES) | set(OPERATOR_CASES) | set(HARDENING_CASES) | set(
-        JOB_FOLDER_CASES
-    )
+    listed = set(CLI_CASES) | set(OPERATOR_CASES)
+    for module in _case_modules():
+        assert not listed & set(module.CASES), module.__name__
+        listed |= set(module.CASES)
+    assert documented == listed
+
+
+def test_each_documented_case_names_a_test_here():
+    """Each CASES entry of the files above names a test of its own file."""
+    for module in _case_modules():
+        missing = {k: v for k, v in module.CASES.items() if not callable(getattr(module, v, None))}
+        assert not missing, (module.__name__, missing)
 
 
 def _argv(case, tmp_path):

@@ -17,7 +17,7 @@ import pytest
 from addon.core import jobgraph
 from addon.core.hdri import write_float_exr
 from addon.jobs import cli
-from test_hardening2 import _one_line as one_line
+from helpers import one_line
 
 TINY = ["--grid", "1x1", "--size", "32", "--samples", "1"]
 

@@ -311,7 +311,7 @@ def _sky_with_distinct_poles(path, w):
 def test_lookups_clamp_at_the_poles(tmp_path):
     """Cycles' Environment Texture wraps t where the model clamps it to the first and last
     rows' centres, so the group limits each lookup's elevation to half a row from a pole
-    (node_group.environment). Under a sky of radiance 1 + 0.9 sin(elevation) (top row 1.9,
+    (node_compiler.environment). Under a sky of radiance 1 + 0.9 sin(elevation) (top row 1.9,
     bottom 0.1) a mirror and a rough sphere 90 px wide reflect the zenith inside that band
     (2.8 degrees for the roughest level, 32 rows). Measured on 4.5 and 5.2: every pixel within
     3.2e-5 of the OSL shader (bound 1e-3); without the clamp (mutation), 12 pixels near the
@@ -405,7 +405,7 @@ def test_a_flat_floor_reads_the_pole_like_the_osl_shader(tmp_path):
     a sky of 1 + 0.9 sin(elevation) the group read indirect diffuse 0.782 against the OSL
     shader's 1.256 (-38%) and a mirror floor's reflection 0.041 against 0.077 (-47%) before.
     Checked for a 256- and a 4096-wide sky: the tall one is where float32 cannot resolve half
-    a row from the pole (node_group.POLE_MARGIN)."""
+    a row from the pole (node_compiler.POLE_MARGIN)."""
     import bpy
     from addon.blender import materials, model_node, renderer
     from addon.core import ibl_bake

@@ -21,7 +21,8 @@ from addon.core import compare
 from addon.core.hdri import oiio
 from addon.core.model import OSL_RESIDUAL, ModelOptions
 from addon.core.settings import MatrixSettings
-from addon.jobs.scene_job import read_material_index, save_layers
+from addon.blender.comparison_render import save_layers
+from addon.core.compare import read_material_index
 
 SMITH = "smith_ggx_correlated"
 OTHER_G = ("cook_torrance", "unity_smith_joint")

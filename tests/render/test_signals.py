@@ -1,0 +1,215 @@
+"""Signals: SIGINT (Ctrl-C) and SIGTERM cancel every job at every phase, at once, with one
+line and exit status 130, and leave nothing behind: no partial output, no staging folder in
+the cache, nothing in the system's temporary folder (the OSL compile folder and a pixel grid's
+folder are registered temporaries, jobs/signals.py); the main job keeps its finished renders.
+Checked on real processes."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from helpers import CTLAB, ROOT, TINY
+from addon.core import files
+from addon.core.compare import read_image
+from addon.core.hdri import write_float_exr
+
+# The rows of docs/bad-input.md that these tests hold (test_bad_input checks the table lists
+# them and that each names a test here): ID -> the test.
+CASES = {
+    "signal-osl-compile": "test_sigterm_while_the_osl_shader_compiles_leaves_nothing",
+    "signal-pixel-grid": "test_a_signal_inside_a_registered_temporary_folder_leaves_nothing",
+}
+
+
+def _start(args, env=None, **kw):
+    env = dict(os.environ, PYTHONUNBUFFERED="1", **(env or {}))
+    return subprocess.Popen(
+        CTLAB + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, **kw
+    )
+
+
+def _wait_for(proc, text, timeout=180):
+    """Read the child's stdout until a line holds ``text``."""
+    deadline = time.monotonic() + timeout
+    lines = []
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        if text in line:
+            return lines
+    raise AssertionError(f"never saw {text!r}: {''.join(lines)}")
+
+
+def _cancelled(proc, started):
+    out, err = proc.communicate(timeout=60)
+    seconds = time.monotonic() - started
+    assert proc.returncode == 130, (proc.returncode, err[-2000:])
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert lines == ["ctlab: cancelled; finished outputs are kept"], err[-2000:]
+    return seconds
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_cancels_a_render_within_seconds(tmp_path, sig):
+    """A 256-sample OSL render takes tens of seconds on two cores; a signal two seconds in
+    stops it at once (Cycles used to swallow Ctrl-C and render on): exit 130, one line, no
+    output and no temporary file in --out or the system's temporary folder."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    out = tmp_path / "out"
+    proc = _start(
+        [
+            "render",
+            "--shader",
+            "osl",
+            "--grid",
+            "3x3",
+            "--size",
+            "192",
+            "--samples",
+            "256",
+            "--out",
+            str(out),
+        ],
+        env={"TMPDIR": str(tmp)},
+    )
+    _wait_for(proc, "rendering")
+    time.sleep(2.0)
+    proc.send_signal(sig)
+    assert _cancelled(proc, time.monotonic()) < 5
+    assert not out.exists() or not any(out.iterdir()), list(out.iterdir())
+    assert not any(tmp.iterdir()), list(tmp.iterdir())
+
+
+def test_sigterm_during_the_main_job_keeps_the_finished_renders(tmp_path):
+    out = tmp_path / "m"
+    proc = _start(["matrix", "--grid", "2x2", "--size", "32", "--samples", "2", "--out", str(out)])
+    _wait_for(proc, "[2/")
+    proc.send_signal(signal.SIGTERM)
+    _cancelled(proc, time.monotonic())
+    first = out / "cook_torrance"
+    assert sorted(p.name for p in first.iterdir()) == ["render.exr", "render.png", "scene.json"]
+    read_image(first / "render.exr")  # whole
+    assert not [p for p in out.rglob("*") if "partial" in p.name]
+    assert not (out / "report.html").exists()
+
+
+def test_ctrl_c_during_a_bake_leaves_no_staging_folder(tmp_path):
+    """Level 1 of a bake is a 512-wide convolution (about a second on two cores, whatever the
+    source's size): Ctrl-C as it starts ends the bake with one line, and the cache holds no
+    half-written entry (its staging folder is removed)."""
+    cache_dir = tmp_path / "cache"
+    hdri = tmp_path / "sky.exr"
+    write_float_exr(hdri, np.random.default_rng(9).random((1024, 2048, 3)).astype(np.float32))
+    proc = _start(["bake", str(hdri)], env={"CTLAB_CACHE": str(cache_dir)})
+    _wait_for(proc, "specular level 1")
+    proc.send_signal(signal.SIGINT)
+    assert _cancelled(proc, time.monotonic()) < 5
+    leftovers = [p.name for p in cache_dir.rglob("*") if "partial" in p.name]
+    assert not leftovers, leftovers
+
+
+def test_ctrl_c_during_a_plot_writes_nothing(tmp_path):
+    """A plot writes its files together at the end: Ctrl-C after its first render leaves
+    --out without a file (and no temporary), exit 130, one line."""
+    out = tmp_path / "plot"
+    proc = _start(
+        [
+            "plot",
+            "--compare",
+            "g=smith_ggx_correlated,energy=compensated",
+            "--view",
+            "D,F,G,NdotL",
+            "--out",
+            str(out),
+        ]
+    )
+    _wait_for(proc, "[2/")
+    proc.send_signal(signal.SIGINT)
+    assert _cancelled(proc, time.monotonic()) < 5
+    assert not out.exists() or not any(out.iterdir()), list(out.iterdir())
+
+
+def _watch_for(tmp: Path, prefix: str, proc, timeout=120):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if any(p.name.startswith(prefix) for p in tmp.iterdir()):
+            return True
+        time.sleep(0.002)
+    return False
+
+
+def test_sigterm_while_the_osl_shader_compiles_leaves_nothing(tmp_path):
+    """SIGTERM while Cycles compiles the OSL shader used to leave ctlab-osl-*/tmp*.oso in
+    $TMPDIR: the compile folder is now one of the registered temporaries."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    out = tmp_path / "o"
+    proc = subprocess.Popen(
+        CTLAB + ["render", "--shader", "osl", *TINY, "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, TMPDIR=str(tmp)),
+    )
+    seen = _watch_for(tmp, "ctlab-osl-", proc)
+    proc.send_signal(signal.SIGTERM)
+    err = proc.communicate(timeout=60)[1]
+    assert seen, "the compile folder never appeared"
+    assert proc.returncode == 130, err[-2000:]
+    assert not any(tmp.iterdir()), list(tmp.rglob("*"))
+    assert not out.exists() or not any(out.iterdir())
+
+
+CHILD = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+from addon.core.files import atomic_path, temporary_folder
+from addon.jobs import signals
+signals.install()
+with temporary_folder("ctlab-pixels-") as folder, atomic_path(folder / "pixels.exr") as tmp:
+    tmp.write_bytes(b"half")
+    print("ready", flush=True)
+    time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_inside_a_registered_temporary_folder_leaves_nothing(sig, tmp_path):
+    """The one cleanup path (jobs/signals.py) removes a pixel grid's temporary folder and a
+    staged file in it, whatever the phase: the process ends at once with 130."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(ROOT)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, TMPDIR=str(tmp)),
+    )
+    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    assert any(tmp.iterdir())
+    proc.send_signal(sig)
+    proc.communicate(timeout=30)
+    assert proc.returncode == 130
+    assert not any(tmp.iterdir()), list(tmp.rglob("*"))
+
+
+def test_pixel_grid_and_compile_folders_are_registered_temporaries():
+    with files.temporary_folder("ctlab-pixels-") as folder:
+        assert folder in files.live_temporaries() and folder.is_dir()
+    assert not folder.exists() and folder not in files.live_temporaries()
+    import inspect
+    from addon.blender import osl_shader, pixel_grid
+
+    for module in (osl_shader, pixel_grid):
+        source = inspect.getsource(module)
+        assert "temporary_folder(" in source and "mkdtemp" not in source, module
