@@ -18,7 +18,7 @@ import bpy
 
 from . import light_sync, model_node
 from ..core.errors import UserError
-from ..core.model import OPTION_VALUES
+from ..core.model import ARTIST, OPTION_VALUES
 
 INVERT_TAG = "ctlab_one_minus"  # the Math node: smoothness = 1 - roughness (or back)
 SAVED_EMISSION_SAMPLING = "ctlab_saved_emission_sampling"
@@ -87,12 +87,15 @@ def _invert_link(tree, dst: bpy.types.NodeSocket, src: bpy.types.NodeSocket, lab
 
 
 def principled_to_model(
-    mat: bpy.types.Material, scene: bpy.types.Scene, impl: str, light_transport: str = "scene"
+    mat: bpy.types.Material,
+    scene: bpy.types.Scene,
+    impl: str,
+    light_transport: str | None = None,
 ) -> list:
     """Replace the material's Principled BSDF by the Cook-Torrance node; returns notes on
     what could not be mapped. Raises UserError when the surface is not a Principled BSDF.
-    The material is path traced as Principled was (the scene transport) unless
-    ``light_transport`` says "lab"."""
+    ``light_transport`` None: an artist's material's default (core.model.rules: path traced
+    as Principled was, the scene transport)."""
     bsdf = surface_principled(mat)
     if bsdf is None:
         raise UserError(
@@ -143,9 +146,7 @@ def principled_to_model(
     tree.nodes.remove(bsdf)
     model_node.link_geometry_normal(tree, node)
     model_node.connect_residual(tree, node)
-    if impl == "nodes":
-        model_node.set_option(node, "ibl", "split_sum")
-    model_node.set_option(node, "light_transport", light_transport)
+    model_node.set_defaults(node, ARTIST, light_transport=light_transport)
     model_node.set_option(node, "energy", energy or "none")
     # the model emits its view: never sample it as a light (restored on the way back)
     mat[SAVED_EMISSION_SAMPLING] = mat.cycles.emission_sampling

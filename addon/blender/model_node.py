@@ -31,6 +31,7 @@ from ..core.model import (
     ModelOptions,
     indirect_light,
     light_key,
+    resolve,
 )
 
 NODE_NAME = "Cook-Torrance"
@@ -201,6 +202,15 @@ def set_option(node: bpy.types.Node, key: str, value: str) -> None:
         sock.default_value = BAKED_IBL_MODES.index(value)
     else:
         sock.default_value = values.index(value)
+
+
+def set_defaults(node: bpy.types.Node, context: str, **options) -> None:
+    """Set ``options`` (key -> value; None: the rule's) on ``node`` with the defaults and
+    fallbacks that the model's rules give its implementation in ``context``
+    (core.model.rules.resolve: the context's light transport, the implementation's indirect
+    light). Raises UserError where the rules refuse the options."""
+    for key, value in resolve(implementation(node), options, context).items():
+        set_option(node, key, value)
 
 
 def set_options(node: bpy.types.Node, options: ModelOptions) -> None:

@@ -42,6 +42,7 @@ from .model import (
     UNITS,
     ModelOptions,
     ggx_alpha,
+    perceptual_roughness,
 )
 
 SLICE_SIZE = 90  # 1° steps of θh and θd
@@ -300,7 +301,7 @@ class PlotSettings:
 
     @property
     def alpha(self) -> float:
-        return ggx_alpha(self.smoothness)
+        return ggx_alpha(perceptual_roughness(self.smoothness))
 
     def variants(self) -> list:
         """[(tag, label, switch changes)]: the plot's own model first (tag "", labelled with

@@ -24,13 +24,13 @@ def kernel_mean_cosines() -> np.ndarray:
     itself: 1), K(mu) = D(h) mu over mu = r.l in [0, 1] (ibl_bake.ggx_kernel), by quadrature
     in q = (1 - mu)/2, denser toward the peak."""
     from ..core.ibl_bake import LEVEL_ROUGHNESS, ggx_kernel
-    from ..core.model import MIN_ALPHA
+    from ..core.model import ggx_alpha
 
     s = (np.arange(20000) + 0.5) / 20000
     q, dq = 0.5 * s**4, 2.0 * s**3 / 20000
     out = [1.0]
     for pr in LEVEL_ROUGHNESS[1:]:
-        k = ggx_kernel(max(pr * pr, MIN_ALPHA))(q) * dq
+        k = ggx_kernel(ggx_alpha(pr))(q) * dq
         out.append(float(np.sum(k * (1 - 2 * q)) / np.sum(k)))
     return np.array(out)
 
@@ -38,7 +38,7 @@ def kernel_mean_cosines() -> np.ndarray:
 def correction_tables(g_model: str, size: int | None = None) -> dict:
     """The tables above for one G: {kind: (size, size, 3) float32}."""
     from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis, ggx_half_vectors
-    from ..core.model import MIN_ALPHA
+    from ..core.model import ggx_alpha
 
     size = size or DFG_SIZE
     x = dfg_axis(size)
@@ -65,7 +65,7 @@ def correction_tables(g_model: str, size: int | None = None) -> dict:
     for j, pr in enumerate(x):
         if g_model == "smith_ggx_correlated":
             continue
-        a = max(pr * pr, MIN_ALPHA)
+        a = ggx_alpha(pr)
         q = ggx_half_vectors(nv, a, *CORRECTION_SAMPLES)
         nh, sh, vh, nl, sv = (q[k] for k in ("nh", "sh", "vh", "nl", "sv"))
         nv3 = nv[:, None, None]

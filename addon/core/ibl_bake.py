@@ -41,7 +41,7 @@ import numpy as np
 from . import cache
 from .files import DATA_DIR, check_writable, copy_file, refuse_overwrite, write_json
 from .hdri import file_hash, load_hdri, write_float_exr
-from .model import G_MODELS, MIN_ALPHA
+from .model import G_MODELS, ggx_alpha
 
 VERSION = 5  # 4: the multiple-scattering tables (ms_<G>.exr); 5: their dominant direction
 LEVEL_COUNT = 7
@@ -229,7 +229,7 @@ def _specular_scale_bias(
     """A(n.v), B(n.v) at one perceptual roughness: integral f_s (n.l) dl = F0 A + B, each
     half vector of ggx_half_vectors adding F G (v.h) / ((n.h)(n.v)) (Karis 2013), with
     F = F0 (1 - Fc) + Fc, Fc = (1 - v.h)^5."""
-    a = max(pr * pr, MIN_ALPHA)
+    a = ggx_alpha(pr)
     q = ggx_half_vectors(nv, a, nu, nphi)
     nh, sh, phi, vh, nl, sv = (q[k] for k in ("nh", "sh", "phi", "vh", "nl", "sv"))
     nv = nv[:, None, None]
@@ -460,7 +460,7 @@ def bake(hdri_path, progress=None, warn=None) -> Path:
                 w = min(LEVEL_WIDTHS[m], W)
                 if w not in sources:
                     sources[w] = downsample(pixels, w)
-                level = zonal_convolve(sources[w], ggx_kernel(max(pr * pr, MIN_ALPHA)), True)
+                level = zonal_convolve(sources[w], ggx_kernel(ggx_alpha(pr)), True)
             write_float_exr(stage / level_file(m), level)
             timings[level_file(m)] = round(time.perf_counter() - t, 3)
             levels.append(

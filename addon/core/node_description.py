@@ -1,12 +1,13 @@
 """The node group's description, node_groups/cook_torrance.toml, read without Blender.
 
 The description is data: frames of named nodes written as nested calls (the file's header says
-how). This module checks it against the model (core/model.py: its views, light slots, the
-scene transport's keys), parses each expression into a tree ('call', 'KIND.OP', [args]) /
-('ref', name) / ('num', value), and plans the groups it is built into: the per-light group
-(``LightPlan``) and the scene transport's correction group (``SubgroupPlan``). The builder
-(addon/blender/node_group.py) turns those plans into Blender nodes; the tests read them
-without Blender, as Blender's node_wrangler keeps its bpy-free helpers apart."""
+how). This module checks it against the model (core/model/words.py and core/model/interface.py:
+its views, light slots, the scene transport's keys), parses each expression into a tree
+('call', 'KIND.OP', [args]) / ('ref', name) / ('num', value), and plans the groups it is built
+into: the per-light group (``LightPlan``) and the scene transport's correction group
+(``SubgroupPlan``). The builder (addon/blender/node_group.py) turns those plans into Blender
+nodes; the tests read them without Blender, as Blender's node_wrangler keeps its bpy-free
+helpers apart."""
 
 from __future__ import annotations
 

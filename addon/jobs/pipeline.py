@@ -25,7 +25,7 @@ from ..core import brdf_plot, energy, ibl_bake
 from ..core.errors import Cancelled, UserError
 from ..core.hdri import load_hdri
 from ..core.files import check_writable, forget_report, refuse_overwrite
-from ..core.model import BAKED_IBL_MODES, G_MODELS
+from ..core.model import BAKED_IBL_MODES, DEFAULT_TRANSPORT, G_MODELS, LAB
 from ..core.paths import safe_name
 from ..core.settings import MIN_SPHERE_PX, MatrixSettings, with_overrides, world_to_pixel
 
@@ -244,7 +244,7 @@ def matrix_settings(base: MatrixSettings) -> dict:
         # --light-transport scene they stay lab renders (the study of the split-sum, and the
         # node group's parity with the OSL shader in the same mode)
         transport = (
-            "lab"
+            DEFAULT_TRANSPORT[LAB]
             if shader != "principled" and ibl in BAKED_IBL_MODES
             else base.model.light_transport
         )
@@ -266,7 +266,7 @@ PARITY_BOUND = 1.0  # every sphere's mean CIEDE2000
 # (lab: the scene transport's closures for Smith and Lambert are Cycles' own GGX, so parity
 # would hold without testing the model's integration)
 PARITY_MODEL = dict(
-    light_transport="lab",
+    light_transport=DEFAULT_TRANSPORT[LAB],
     g_model="smith_ggx_correlated",
     diffuse_model="lambert",
     metallic=1.0,

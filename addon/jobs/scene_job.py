@@ -70,12 +70,15 @@ from ..core.files import (
     write_json,
 )
 from ..core.model import (
+    ARTIST,
+    DEFAULT_TRANSPORT,
     DIFFUSE_MODELS,
     ENERGY_MODES,
     G_MODELS,
     IMPLEMENTATIONS,
     LIGHT_TRANSPORTS,
-    UNITS,
+    MAX_SAMPLES,
+    scene_transport_problem,
 )
 from ..core.scene_report import write_scene_report
 from .pipeline import Events
@@ -84,7 +87,6 @@ OUTPUT_FILES = ("metrics.json", "diff.png", "materials.png", "report.html")
 DISTRIBUTIONS = ("auto", "GGX", "MULTI_GGX")
 HEATMAP_MAX = 10.0
 MAX_SIZE = 16384
-MAX_SAMPLES = 65536
 MAX_SEED = 2**31 - 1
 
 
@@ -95,7 +97,7 @@ class SceneJob:
     blend: Path
     out: Path
     convert: bool = False
-    light_transport: str = "scene"
+    light_transport: str = DEFAULT_TRANSPORT[ARTIST]
     shader: str | None = None  # osl | nodes (with --convert: default osl)
     g_model: str | None = None
     diffuse_model: str | None = None
@@ -155,12 +157,9 @@ def set_model(mat: bpy.types.Material, job: SceneJob, impl: str | None) -> bpy.t
     ):
         if value is not None:
             model_node.set_option(node, key, value)
-    if job.light_transport == "scene" and model_node.get_option(node, "units") != UNITS[0]:
-        raise UserError(
-            f"material {mat.name!r} uses Unity's units, which exist in the lab "
-            "transport only; use --light-transport lab, or set its Units to "
-            "physical"
-        )
+    problem = scene_transport_problem(model_node.get_option(node, "units"), job.light_transport)
+    if problem:
+        raise UserError(f"material {mat.name!r}: {problem}")
     return node
 
 

@@ -25,13 +25,8 @@ from .operators import (
     CTLAB_OT_sync_lighting,
     JOBS,
 )
-from ..core.model import (
-    IMPLEMENTATION_LABELS,
-    LIGHT_SLOTS,
-    ggx_alpha,
-    perceptual_roughness,
-    transport_notes,
-)
+from ..core.model import LIGHT_SLOTS, ggx_alpha, perceptual_roughness
+from .labels import IMPLEMENTATION_LABELS, transport_notes
 
 
 def _source_label(sock: bpy.types.NodeSocket) -> str:
@@ -128,10 +123,8 @@ class CTLAB_PT_material(bpy.types.Panel):
         if smooth.is_linked:
             col.label(text="Roughness = 1 - smoothness, per texel")
         else:
-            s = smooth.default_value
-            col.label(
-                text=f"Roughness {perceptual_roughness(s):.3f}   GGX alpha {ggx_alpha(s):.4f}"
-            )
+            pr = perceptual_roughness(smooth.default_value)
+            col.label(text=f"Roughness {pr:.3f}   GGX alpha {ggx_alpha(pr):.4f}")
         normal = model_node.surface_input(node, "normal")
         if normal.is_linked and normal.links[0].from_node.bl_idname != "ShaderNodeNewGeometry":
             _input_row(col, normal, "Normal")

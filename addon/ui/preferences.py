@@ -11,7 +11,8 @@ import bpy
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from ..blender.paths import PACKAGE, preferences
-from ..core.model import IMPLEMENTATION_LABELS
+from ..core.model import MAX_SAMPLES
+from .labels import IMPLEMENTATION_LABELS
 
 # the node group first: the default (it runs on every back end)
 IMPLEMENTATION_ITEMS = tuple((i, *IMPLEMENTATION_LABELS[i]) for i in ("nodes", "osl"))
@@ -45,7 +46,7 @@ class CTLAB_AddonPreferences(bpy.types.AddonPreferences):
         name="Default Samples",
         default=DEFAULT_SAMPLES,
         min=1,
-        max=65536,
+        max=MAX_SAMPLES,
         description="Render samples of the comparison job",
     )
 

@@ -15,7 +15,8 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, PointerProperty, StringProperty
 
 from ..blender import model_node
-from ..core.model import IBL_LABELS, LIGHT_TRANSPORT_LABELS, OPTION_VALUES, label
+from ..core.model import OPTION_VALUES
+from .labels import IBL_LABELS, LIGHT_TRANSPORT_LABELS, label
 
 
 def _items(key):

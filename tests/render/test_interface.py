@@ -1,5 +1,6 @@
-"""The model's interface is written once (addon/core/model.py): the OSL shader's parameters,
-the node group's sockets and the views of both implementations must be exactly that table."""
+"""The model's interface is written once (addon/core/model/interface.py): the OSL shader's
+parameters, the node group's sockets and the views of both implementations must be exactly that
+table."""
 
 import re
 import tomllib
@@ -142,12 +143,13 @@ def _choices(parser, command: str, dest: str):
 
 
 def test_the_cli_and_the_ui_take_their_vocabulary_from_the_model():
-    """The implementations, the reference and every switch's values are core/model.py's:
+    """The implementations, the reference and every switch's values are core/model/words.py's:
     the command line's choices, the material panel's dropdowns, the preferences' and the
-    operators' items are built from it, in its order."""
+    operators' items are built from it, in its order, named by ui/labels.py."""
     from addon.core import model
     from addon.jobs.cli.parser import build_parser
     from addon.ui import operators, preferences, properties
+    from addon.ui.labels import label
 
     parser = build_parser()
     assert _choices(parser, "render", "shader") == model.SHADERS == ("osl", "nodes", "principled")
@@ -170,7 +172,7 @@ def test_the_cli_and_the_ui_take_their_vocabulary_from_the_model():
         ("light_transport", properties.TRANSPORT_ITEMS),
     ):
         assert tuple(i[0] for i in items) == OPTION_VALUES[key], key
-        assert all(i[1] == model.label(i[0]) for i in items), key
+        assert all(i[1] == label(i[0]) for i in items), key
     assert {i[0] for i in preferences.IMPLEMENTATION_ITEMS} == set(model.IMPLEMENTATIONS)
     assert tuple(i[0] for i in operators._SHADER_ITEMS) == model.SHADERS
 

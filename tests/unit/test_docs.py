@@ -16,7 +16,7 @@ REPO_PATH = re.compile(
     r"(?<![\w/.-])((?:addon|osl|node_groups|scripts|tests|bench|docs)"
     r"/[\w/*.-]*\.(?:py|osl|h|toml|sh|md|txt|json|npy|png))\b"
 )
-# a module named by its layer: core/model.py, blender/node_group.py ...
+# a module named by its layer: core/settings.py, blender/node_group.py ...
 LAYER_PATH = re.compile(r"(?<![\w/.-])((?:core|blender|jobs|ui)/\w+\.py)\b")
 PLACEHOLDER = re.compile(r"/[A-Z]{3,}\.")  # tests/FILE.py, addon/data/NAME.npy
 MODULES = sorted(p for p in (ROOT / "addon").glob("*/**/*.py") if p.stem != "__init__")

@@ -28,10 +28,17 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from ..model import DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, MIN_ALPHA, SCENE_EXACT_G, UNITS
+from ..model import (
+    DIELECTRIC_F0,
+    DIFFUSE_MODELS,
+    DIFFUSE_SCALE,
+    ENERGY_MODES,
+    G_MODELS,
+    MIN_ALPHA,
+    SCENE_EXACT_G,
+    UNITS,
+)
 
-DIELECTRIC_F0 = 0.04  # docs/model.md: a dielectric's F0 (Unity's unity_ColorSpaceDielectricSpec)
-DIFFUSE_SCALE = 1.0 - DIELECTRIC_F0  # diffColor = albedo * 0.96 * (1 - metallic)
 # Colour spaces of an image file: Blender's name -> MaterialX's (raw data: none)
 COLORSPACES = {
     "sRGB": "srgb_texture",

@@ -139,7 +139,10 @@ def vector_text(values) -> str:
 GRID = Option("--grid", f"ROWSxCOLS of the sphere matrix ({_by_job('grid')})")
 SIZE = Option("--size", f"image width and height in pixels ({_by_job('size')})", int)
 SAMPLES = Option(
-    "--samples", f"render samples per pixel ({_by_job('samples')})", int, limits=(1, 65536)
+    "--samples",
+    f"render samples per pixel ({_by_job('samples')})",
+    int,
+    limits=(1, model.MAX_SAMPLES),
 )
 HDRI = Option("--hdri", "equirectangular HDRI (default: Blender's forest.exr)", default="")
 HDRI_STRENGTH = Option("--hdri-strength", "the world's strength", float, 1.0)
@@ -177,8 +180,8 @@ DIFFUSE = _switch("--diffuse", model.DIFFUSE_MODELS, dest="diffuse_model")
 UNITS = _switch("--units", model.UNITS, " (unity: x pi on direct light; lab transport only)")
 ENERGY = _switch("--energy", model.ENERGY_MODES, " (compensated: Kulla-Conty multiple scattering)")
 # The default transport depends on the command: the sphere matrix, its views and the parity
-# job study the model, whose exact values need the lab transport (the model's first,
-# ModelOptions' default); `ctlab scene` puts the model on a user's objects, where every
+# job study the model, whose exact values need the lab transport (the rule's default
+# in the lab context, core/model/rules.py); `ctlab scene` puts the model on a user's objects, where every
 # object and light counts, so it defaults to the scene transport (docs/model.md "Light
 # transport"; `scene` says so where it takes the option).
 LIGHT_TRANSPORT = _switch(
@@ -187,7 +190,7 @@ LIGHT_TRANSPORT = _switch(
     " (lab: the model lights itself, exactly, from the HDRI, the Sun and the lights; scene: "
     "Cycles path traces the model's closures, plus its correction for the world and the "
     "lights)",
-)
+).but(default=model.DEFAULT_TRANSPORT[model.LAB])
 ENV_SAMPLES = Option(
     "--env-samples",
     "environment samples per shading point and render sample (each of BRDF and "

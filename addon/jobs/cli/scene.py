@@ -24,6 +24,7 @@ from .options import (
     per_material,
 )
 from .output import events, say
+from ...core import model
 from ...core.paths import input_file
 
 
@@ -84,7 +85,7 @@ COMMAND = Command(
         # the scene transport by default: a user's objects, where every object and light
         # counts (cli/options.py LIGHT_TRANSPORT says why the matrix's is lab)
         LIGHT_TRANSPORT.but(
-            default="scene",
+            default=model.DEFAULT_TRANSPORT[model.ARTIST],
             choices=LIGHT_TRANSPORT.values,
             help="for the model materials (default scene: Cycles path traces the model's closures)",
         ),

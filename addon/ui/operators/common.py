@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import bpy
 
-from ...core.model import IBL_LABELS, IBL_MODES, SHADER_LABELS, SHADERS
+from ...core.model import IBL_MODES, SHADERS
 from ...core.settings import MatrixSettings
 from .. import preferences
+from ..labels import IBL_LABELS, SHADER_LABELS
 
 _DEFAULTS = MatrixSettings()
 _IBL_ITEMS = tuple((m, *IBL_LABELS[m]) for m in IBL_MODES)

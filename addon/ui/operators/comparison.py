@@ -13,6 +13,7 @@ from mathutils import Vector
 from ...blender import light_sync
 from ...blender.drivers import world_nodes
 from ...core.errors import UserError
+from ...core.model import ARTIST, DEFAULT_TRANSPORT, MAX_SAMPLES
 from ...core.paths import clean
 from ...core.settings import MAX_GRID
 from .. import preferences
@@ -50,7 +51,7 @@ class CTLAB_OT_render_comparison(bpy.types.Operator):
         name="Samples",
         default=0,
         min=0,
-        max=65536,
+        max=MAX_SAMPLES,
         description="0: the preferences' default samples",
     )
     open_report: BoolProperty(name="Open Report", default=True)
@@ -133,10 +134,12 @@ class CTLAB_OT_scene_comparison(bpy.types.Operator):
         name="Samples",
         default=0,
         min=0,
-        max=65536,
+        max=MAX_SAMPLES,
         description="0: the preferences' default samples",
     )
-    light_transport: EnumProperty(name="Light Transport", items=TRANSPORT_ITEMS, default="scene")
+    light_transport: EnumProperty(
+        name="Light Transport", items=TRANSPORT_ITEMS, default=DEFAULT_TRANSPORT[ARTIST]
+    )
     convert: BoolProperty(
         name="Convert Principled",
         default=False,

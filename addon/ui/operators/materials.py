@@ -8,8 +8,9 @@ from bpy.props import EnumProperty
 
 from ...blender import light_sync, model_node
 from ...core.errors import UserError
-from ...core.model import IMPLEMENTATION_LABELS
+from ...core.model import ARTIST, DEFAULT_TRANSPORT
 from .. import preferences
+from ..labels import IMPLEMENTATION_LABELS
 from ..properties import TRANSPORT_ITEMS, VIEW_ITEMS
 from .common import _IMPL_ITEMS, _SCOPE_ITEMS, _active_material, _implementation, _progress
 
@@ -35,7 +36,9 @@ class CTLAB_OT_new_material(bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     implementation: EnumProperty(name="Implementation", items=_IMPL_ITEMS, default="PREFERENCES")
-    light_transport: EnumProperty(name="Light Transport", items=TRANSPORT_ITEMS, default="scene")
+    light_transport: EnumProperty(
+        name="Light Transport", items=TRANSPORT_ITEMS, default=DEFAULT_TRANSPORT[ARTIST]
+    )
 
     def execute(self, context):
         impl = _implementation(self.implementation)
@@ -55,9 +58,7 @@ class CTLAB_OT_new_material(bpy.types.Operator):
                 node = model_node.new_node(tree, impl)
             model_node.connect_output(tree, node)
             model_node.link_geometry_normal(tree, node)
-            if impl == "nodes":
-                model_node.set_option(node, "ibl", "split_sum")
-            model_node.set_option(node, "light_transport", self.light_transport)
+            model_node.set_defaults(node, ARTIST, light_transport=self.light_transport)
             mat.cycles.emission_sampling = 'NONE'
             with _progress(context):
                 light_sync.sync_material(mat, context.scene)
@@ -97,8 +98,7 @@ class CTLAB_OT_add_node_group(bpy.types.Operator):
     def execute(self, context):
         tree = _tree_for_adding(context)
         node = model_node.new_node(tree, "nodes")
-        model_node.set_option(node, "ibl", "split_sum")
-        model_node.set_option(node, "light_transport", "scene")  # an artist's material
+        model_node.set_defaults(node, ARTIST)  # an artist's material
         space = getattr(context, "space_data", None)
         if hasattr(space, "cursor_location"):
             node.location = space.cursor_location
