@@ -9,10 +9,10 @@ type cannot drift apart between commands. The parser (cli/parser.py) is assemble
 commands' options, and so are the command lines the add-on writes (``argv``) and the list of
 options that take a value.
 
-The model's switches and their values are core/model.py's; their default is its first value
-(``ModelOptions``' defaults), which the model checks (its message names the switch). The
+The model's switches and their values are core/model/words.py's; their default is the
+first value (``ModelOptions``' defaults), which the model checks (its message names the switch). The
 limits the command line checks itself (``limits``) are declared here; the others are checked
-by what the value sets (core/settings.py, core/model.py, jobs/scene_job.py).
+by what the value sets (core/settings.py, core/model/rules.py, jobs/scene_job.py).
 """
 
 from __future__ import annotations
@@ -181,8 +181,8 @@ UNITS = _switch("--units", model.UNITS, " (unity: x pi on direct light; lab tran
 ENERGY = _switch("--energy", model.ENERGY_MODES, " (compensated: Kulla-Conty multiple scattering)")
 # The default transport depends on the command: the sphere matrix, its views and the parity
 # job study the model, whose exact values need the lab transport (the rule's default
-# in the lab context, core/model/rules.py); `ctlab scene` puts the model on a user's objects, where every
-# object and light counts, so it defaults to the scene transport (docs/model.md "Light
+# in the lab context, core/model/rules.py); `ctlab scene` puts the model on a user's
+# objects, where every object and light counts, so it defaults to the scene transport (docs/model.md "Light
 # transport"; `scene` says so where it takes the option).
 LIGHT_TRANSPORT = _switch(
     "--light-transport",
