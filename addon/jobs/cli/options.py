@@ -182,8 +182,8 @@ ENERGY = _switch("--energy", model.ENERGY_MODES, " (compensated: Kulla-Conty mul
 # The default transport depends on the command: the sphere matrix, its views and the parity
 # job study the model, whose exact values need the lab transport (the rule's default
 # in the lab context, core/model/rules.py); `ctlab scene` puts the model on a user's
-# objects, where every object and light counts, so it defaults to the scene transport (docs/model.md "Light
-# transport"; `scene` says so where it takes the option).
+# objects, where every object and light counts, so it defaults to the scene transport
+# (docs/model.md "Light transport"; `scene` says so where it takes the option).
 LIGHT_TRANSPORT = _switch(
     "--light-transport",
     model.LIGHT_TRANSPORTS,
