@@ -37,6 +37,8 @@ def os_errors(path):
 
 
 def lstat(path: Path):
+    """``os.lstat(path)``, or None when nothing stands there; a path below a file or one that
+    cannot be examined is one UserError line."""
     try:
         return os.lstat(path)
     except FileNotFoundError:
