@@ -30,7 +30,6 @@ ENV_VARIANTS = {
     f"osl reference (env {n})": RENDERERS["osl reference"] + ["--env-samples", str(n)]
     for n in (1, 2, 8)
 }
-CONVERGED_AS = dict.fromkeys(ENV_VARIANTS, "osl reference")
 ARGS = {**RENDERERS, **ENV_VARIANTS}
 MAIN_SCENE = {"grid": "7x7", "size": 512, "samples": 64}  # the main job's defaults
 
