@@ -38,6 +38,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))  # run on its own, or as a child: bench.common, addon
+from bench.common import CACHE  # noqa: E402  (the bakes, the node group)
+
 SCENE = {"size": 240, "samples": 64}
 QUICK = {"size": 64, "samples": 4}
 CONFIGS = {  # name -> (implementation, OSL shading, settings)
@@ -199,9 +202,6 @@ def _count_nodes(tree, seen=None) -> int:
 # --- The driver -------------------------------------------------------------------------
 
 
-CACHE = ROOT / "out" / "bench-cache"  # scripts/bench.py's: the bakes, the node group
-
-
 def _child(*args) -> dict:
     cmd = [sys.executable, __file__, "--child", *map(str, args)]
     env = dict(os.environ)
@@ -286,7 +286,6 @@ def scene_real_table(section: dict) -> list:
 
 def main() -> None:
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        sys.path.insert(0, str(ROOT))
         import bpy
 
         bpy.utils.expose_bundled_modules()

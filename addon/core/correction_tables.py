@@ -21,9 +21,10 @@ CORRECTION_TABLES = (
 
 def kernel_mean_cosines() -> np.ndarray:
     """The mean cosine to its axis of each pre-filtered level's kernel (level 0 is the HDRI
-    itself: 1), K(mu) = D(h) mu over mu = r.l in [0, 1] (ibl_bake.ggx_kernel), by quadrature
+    itself: 1), K(mu) = D(h) mu over mu = r.l in [0, 1] (latlong.ggx_kernel), by quadrature
     in q = (1 - mu)/2, denser toward the peak."""
-    from ..core.ibl_bake import LEVEL_ROUGHNESS, ggx_kernel
+    from ..core.ibl_bake import LEVEL_ROUGHNESS
+    from ..core.latlong import ggx_kernel
     from ..core.model import ggx_alpha
 
     s = (np.arange(20000) + 0.5) / 20000

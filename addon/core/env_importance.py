@@ -27,7 +27,7 @@ import numpy as np
 
 from . import cache
 from .hdri import file_hash, load_hdri, write_float_exr
-from .ibl_bake import area_resample
+from .latlong import area_resample
 from .model import REC709_LUMINANCE
 
 TABLE_SIZE = 4096  # M: resolution of the inverse CDFs (the shader's ENV_TABLE_SIZE)
@@ -40,7 +40,7 @@ VERSION = 3  # 3: a fixed tile grid, whatever the HDRI's size
 def tile_weights(pixels: np.ndarray, rows: int = TILE_ROWS, cols: int = TILE_COLS) -> np.ndarray:
     """Mean luminance (Rec. 709) of each tile times sin(theta) at the tile's centre row.
     Tiles that cover whole texels average them; otherwise the texels' areas are shared out
-    (ibl_bake.area_resample), so a map smaller than the grid repeats its texels."""
+    (latlong.area_resample), so a map smaller than the grid repeats its texels."""
     h, w, _ = pixels.shape
     lum = np.maximum(pixels, 0) @ np.array(REC709_LUMINANCE, dtype=np.float32)
     if h % rows == 0 and w % cols == 0:

@@ -233,7 +233,7 @@ def light_record(light) -> dict:
 
 
 # ----------------------------------------------------------------------------------------
-# Settings as data (a job plan stores them: core/jobgraph.py)
+# Settings as data (a job plan stores them: core/jobgraph/plan.py)
 
 _TUPLE_FIELDS = ("albedo", "sun_to_light", "sun_color")
 _LIGHT_TUPLES = ("location", "rotation_euler", "scale", "color")

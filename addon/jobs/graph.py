@@ -1,11 +1,12 @@
 """The batch jobs (the main matrix job, the Principled-parity job) as task graphs
-(core/jobgraph.py): one render task per render folder, then a merge that compares, plots and
-writes the report reading only the job folder. ``ctlab plan`` writes the graph, ``ctlab
-task`` runs one task, ``ctlab merge`` the merge; ``ctlab matrix`` runs the same graph in
-this process (``run_graph``), or its render tasks as ``--workers N`` local processes.
+(core/jobgraph/): one render task per render folder, then a merge that compares, plots and
+writes the report reading only the job folder (jobs/graph_merge.py). ``ctlab plan`` writes
+the graph, ``ctlab task`` runs one task, ``ctlab merge`` the merge; ``ctlab matrix`` runs the
+same graph in this process (``run_graph``), or its render tasks as ``--workers N`` local
+processes.
 
 A task rebuilds its settings from the plan's spec with this version's code and checks that
-they give its id again (core.jobgraph.content_id): a plan from another version, or edited
+they give its id again (core.jobgraph.plan.content_id): a plan from another version, or edited
 settings, is refused in one line rather than rendered into the wrong folder.
 """
 
@@ -20,16 +21,14 @@ from pathlib import Path
 
 import bpy
 
-from . import pipeline
+from . import graph_merge, pipeline
 from ..blender import renderer
 from ..blender.paths import resolve_hdri
-from ..core import energy, ibl_bake, jobgraph
-from ..core.compare import compare, read_image
+from ..core import ibl_bake, jobgraph
 from ..core.errors import Cancelled, UserError
 from ..core.files import PACKAGE_ROOT, check_writable
 from ..core.hdri import file_hash, load_hdri
 from ..core.paths import input_file
-from ..core.report import write_parity_report, write_report
 from ..core.settings import MatrixSettings, settings_from_dict, settings_to_dict
 
 CTLAB_SCRIPT = PACKAGE_ROOT / "scripts" / "ctlab.py"
@@ -56,17 +55,6 @@ def environment() -> dict:
 
 # ----------------------------------------------------------------------------------------
 # The jobs' render folders, from their spec
-
-
-def matrix_labels() -> dict:
-    labels = {folder: label for folder, label, *_ in pipeline.MATRIX_RENDERS}
-    labels.update(
-        {
-            folder: f"White furnace, {pipeline.furnace_label(g, e)}"
-            for folder, g, e in pipeline.FURNACE_RENDERS
-        }
-    )
-    return labels
 
 
 def renders_of(job: str, spec: dict) -> dict:
@@ -273,16 +261,6 @@ def run_task(job_dir: Path, task_id: str, events=None, verbose: bool = False) ->
 # The merge
 
 
-def _scene(job_dir: Path, folder: str) -> dict:
-    """A render folder's scene.json, read as input (jobgraph.read_json: a regular file, not
-    blocking, bounded)."""
-    path = Path(job_dir) / folder / "scene.json"
-    scene = jobgraph.read_json(path, "render description", jobgraph.MAX_PLAN_BYTES)
-    if not isinstance(scene, dict) or not isinstance(scene.get("render_seconds"), (int, float)):
-        raise UserError(f"{path} is not a render's description; re-run its task")
-    return scene
-
-
 def _merge_folders(plan: dict, base: MatrixSettings) -> list:
     """The folders a merge writes in, relative to the job folder: the comparisons, the BRDF
     plots (matrix), each parity run's comparison."""
@@ -314,78 +292,8 @@ def merge(job_dir: Path, events=None, verbose: bool = False, steps: int | None =
     with jobgraph.merge_lock(job_dir):
         jobgraph.check_complete(job_dir, plan)
         if plan["job"] == "matrix":
-            return _merge_matrix(job_dir, plan, base, events, verbose, steps)
-        return _merge_parity(job_dir, plan, events, steps)
-
-
-def _merge_matrix(out, plan, base, events, verbose, steps) -> dict:
-    steps = steps or 2
-    labels = matrix_labels()
-    folders = [t["folder"] for t in jobgraph.render_tasks(plan)]
-    scenes = {f: _scene(out, f) for f in folders}
-    timings = {labels[f]: scenes[f]["render_seconds"] for f in folders}
-    events.check()
-    events.progress(steps - 1, steps, "comparing; the BRDF plots")
-    results = {
-        cmp_dir: compare(out / a, out / b, out / cmp_dir)
-        for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS
-    }
-    furnace = {
-        pipeline.furnace_label(g, e): energy.directional_albedo(
-            read_image(out / folder / "render.exr"), scenes[folder]
-        )
-        for folder, g, e in pipeline.FURNACE_RENDERS
-    }
-    plots = []
-    for name, label, plot in pipeline.report_plots(base):
-        events.check()
-        events.note(f"BRDF plot: {label}")
-        inner = pipeline.Events(note=pipeline._nothing, cancelled=events.cancelled)
-        plots.append(
-            (label, f"plots/{name}", pipeline.run_plot(plot, out / "plots" / name, inner, verbose))
-        )
-    events.progress(steps, steps, "writing the report")
-    report = write_report(
-        out,
-        [
-            (a, b, cmp_dir, labels[a], labels[b], results[cmp_dir])
-            for cmp_dir, a, b in pipeline.MATRIX_COMPARISONS[:5]
-        ],
-        scenes["cook_torrance"],
-        timings,
-        attribution=[(s[1], results[s[0]], *s[2:]) for s in pipeline.ATTRIBUTION],
-        furnace=furnace,
-        plots=plots,
-    )
-    return {"job": "matrix", "report": report, "comparisons": results}
-
-
-def _merge_parity(out, plan, events, steps) -> dict:
-    steps = steps or 1
-    names = list(dict.fromkeys(t["folder"].split("/")[0] for t in jobgraph.render_tasks(plan)))
-    entries = []
-    for name in names:
-        events.check()
-        result = compare(
-            out / name / "cook_torrance", out / name / "principled", out / name / "compare"
-        )
-        worst = max(c["ciede2000_mean"] for c in result["cells"])
-        events.note(
-            f"{name}: mean CIEDE2000 {result['overall']['ciede2000_mean']:.2f}, "
-            f"worst sphere {worst:.2f} (bound {pipeline.PARITY_BOUND})"
-        )
-        entries.append((name, result, _scene(out, f"{name}/cook_torrance")))
-    events.progress(steps, steps, "writing the report")
-    report = write_parity_report(out, entries, pipeline.PARITY_BOUND)
-    holds = all(
-        max(c["ciede2000_mean"] for c in r["cells"]) <= pipeline.PARITY_BOUND for _, r, _ in entries
-    )
-    return {
-        "job": "parity",
-        "holds": holds,
-        "report": report,
-        "comparisons": {n: r for n, r, _ in entries},
-    }
+            return graph_merge.merge_matrix(job_dir, plan, base, events, verbose, steps)
+        return graph_merge.merge_parity(job_dir, plan, events, steps)
 
 
 # ----------------------------------------------------------------------------------------
@@ -448,8 +356,8 @@ def _describe(plan: dict, task: dict) -> str:
     if plan["job"] == "matrix":
         r = pipeline.matrix_settings(s)[folder]
         return (
-            f"{matrix_labels()[folder]}: grid {r.rows}x{r.cols}, {r.width}x{r.height} px, "
-            f"{samples} samples"
+            f"{graph_merge.matrix_labels()[folder]}: grid {r.rows}x{r.cols}, "
+            f"{r.width}x{r.height} px, {samples} samples"
         )
     name, what = folder.split("/")
     return f"{name}: {what}, grid {s.rows}x{s.cols}, {s.width} px, {samples} samples"

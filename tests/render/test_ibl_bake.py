@@ -1,5 +1,6 @@
-"""The split-sum bake (addon/core/ibl_bake.py): the DFG table against brute-force quadrature,
-pre-filtered levels and irradiance against closed forms, the cache, and bad input."""
+"""The split-sum bake (addon/core/ibl_bake.py, its lat-long convolution
+addon/core/latlong.py): the DFG table against brute-force quadrature, pre-filtered levels and
+irradiance against closed forms, the cache, and bad input."""
 
 import json
 import os
@@ -11,7 +12,7 @@ import pytest
 
 from helpers import ROOT, bad_images
 from reference_model import specular_albedo
-from addon.core import ibl_bake
+from addon.core import ibl_bake, latlong
 from addon.core.compare import read_image
 from addon.core.errors import UserError
 from addon.core.hdri import write_float_exr
@@ -29,7 +30,7 @@ def _bake(pixels, path):
 
 def _directions(h, w):
     """Unit direction of each texel centre of a lat-long image (Blender's mapping)."""
-    e = ibl_bake.row_elevations(h)[:, None]
+    e = latlong.row_elevations(h)[:, None]
     s = (np.arange(w) + 0.5)[None, :] / w
     phi = (0.5 - s) * 2 * np.pi
     return np.stack(
@@ -115,7 +116,7 @@ def test_irradiance_of_a_bright_upper_hemisphere_is_the_closed_form(tmp_path):
     sky[: h // 2] = 1.0
     folder = _bake(sky, tmp_path / "sky.exr")
     irr = read_image(folder / ibl_bake.IRRADIANCE_FILE)
-    e = ibl_bake.row_elevations(irr.shape[0])
+    e = latlong.row_elevations(irr.shape[0])
     want = np.pi * (1 + np.sin(e)) / 2
     np.testing.assert_allclose(
         irr[:, :, 1], np.broadcast_to(want[:, None], irr.shape[:2]), atol=0.01 * np.pi
@@ -130,13 +131,13 @@ def test_a_bright_texel_spreads_into_a_ggx_lobe_that_widens_with_roughness(tmp_p
     src[row, col] = power
     folder = _bake(src, tmp_path / "texel.exr")
     l0 = _directions(h, w)[row, col]
-    phi_total = power * ibl_bake.row_solid_angles(h, w)[row]
+    phi_total = power * latlong.row_solid_angles(h, w)[row]
     widths = []
     for m in range(1, ibl_bake.LEVEL_COUNT):
         level = read_image(folder / ibl_bake.level_file(m))[:, :, 0].astype(np.float64)
         lh, lw = level.shape
         d = _directions(lh, lw)
-        dw = ibl_bake.row_solid_angles(lh, lw)[:, None]
+        dw = latlong.row_solid_angles(lh, lw)[:, None]
         mu = np.clip(d @ l0, -1, 1)
         # the peak is where the texel is; the normalised convolution keeps its power
         peak = np.unravel_index(level.argmax(), level.shape)

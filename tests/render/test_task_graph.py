@@ -1,4 +1,4 @@
-"""The batch jobs as task graphs (core/jobgraph.py, jobs/graph.py): ``ctlab plan``, ``ctlab
+"""The batch jobs as task graphs (core/jobgraph/, jobs/graph.py): ``ctlab plan``, ``ctlab
 task``, ``ctlab merge``, ``ctlab matrix --workers``, the Open Job Description bundle, and bad
 job folders (one line each, naming the tasks to re-run, nothing overwritten).
 

@@ -2,7 +2,7 @@
 markers and whatever stands where ``task``, ``merge`` and ``plan`` write are read as a user's
 files — schema-checked, never blocking, never replaced or removed unless ctlab wrote them.
 
-Pure core (core/jobgraph.py), no Blender: the checks, and the writes a task makes after its
+Pure core (core/jobgraph/), no Blender: the checks, and the writes a task makes after its
 render (its outputs staged and renamed, then its marker), on folders built here. Each test
 failed on the code before this layer (noted per test); the Hypothesis layer feeds any JSON, at
 any depth, as a plan or a marker, and any mix of files, folders, pipes and links where a task
@@ -106,7 +106,7 @@ def test_a_plan_nested_very_deep_is_one_line(tmp_path):
 
 def test_a_plan_over_its_size_limit_is_refused_unread(tmp_path, monkeypatch):
     folder = job(tmp_path)
-    monkeypatch.setattr(jobgraph, "MAX_PLAN_BYTES", 100)
+    monkeypatch.setattr(jobgraph.schema, "MAX_PLAN_BYTES", 100)
     with pytest.raises(UserError, match="over the 100"):
         jobgraph.read_plan(folder)
 
