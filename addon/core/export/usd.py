@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import json
 
-from .network import Input, Material, Node, exact, fmt_float, interface_values, model_graph
+from .network import Input, Material, Node, exact, interface_values, model_graph
 from .network import not_carried, texture_nodes, valid_name
+from .materialx import mtlx_value
 
 
 def flat_network(mat: Material) -> tuple:
@@ -46,14 +47,12 @@ USD_TYPES = {
 
 
 def _usd_value(type_: str, value) -> str:
+    """A value in USD's text: tuples in parentheses, asset paths in @, strings quoted; the
+    numbers and booleans as MaterialX writes them (``materialx.mtlx_value``)."""
     if type_ in ("color3", "vector2", "vector3"):
-        return "(" + ", ".join(fmt_float(v) for v in value) + ")"
-    if type_ == "float":
-        return fmt_float(value)
-    if type_ == "integer":
-        return str(int(value))
-    if type_ == "boolean":
-        return "true" if value else "false"
+        return "(" + mtlx_value(type_, value) + ")"
+    if type_ in ("float", "integer", "boolean"):
+        return mtlx_value(type_, value)
     if type_ == "filename":
         return "@" + str(value).replace("@", "") + "@"
     return json.dumps(str(value), ensure_ascii=False)
