@@ -57,3 +57,11 @@ def alarm():
     yield
     signal.alarm(0)
     signal.signal(signal.SIGALRM, old)
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "one_series: its subject does not depend on Blender's version; CI runs it on the "
+        "newest series only (./scripts/test.sh --series-subset leaves it out)",
+    )

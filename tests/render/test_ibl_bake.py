@@ -174,6 +174,7 @@ def test_second_bake_is_a_cache_hit_and_rewrites_nothing(tmp_path, forest_bake):
 
 
 def test_a_failed_bake_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))  # its own: no other test's bake
     path = tmp_path / "noise.exr"
     write_float_exr(path, np.random.default_rng(7).random((32, 64, 3)).astype(np.float32))
     calls = []
