@@ -12,6 +12,7 @@ plus a Lambert Diffuse BSDF) that Cycles path traces, not the lab's emission.
 """
 
 import math
+import tempfile
 
 import numpy as np
 import pytest
@@ -411,11 +412,17 @@ def osl_reference(surface, name):
     text.from_string(OSL_REFERENCE)
     node = nt.nodes.new("ShaderNodeScript")
     node.mode = 'INTERNAL'
-    node.script = text
     errors = []
-    cycles.osl.update_script_node(
-        node, lambda kind, msg: errors.append(msg) if 'ERROR' in kind else None
-    )
+    saved = tempfile.tempdir
+    with tempfile.TemporaryDirectory() as private:  # where Cycles leaves its .oso
+        tempfile.tempdir = private
+        try:
+            node.script = text
+            cycles.osl.update_script_node(
+                node, lambda kind, msg: errors.append(msg) if 'ERROR' in kind else None
+            )
+        finally:
+            tempfile.tempdir = saved
     assert not errors and "f0" in node.inputs, errors
     albedo, m = np.array(surface["albedo"]), surface["metallic"]
     pr = 1.0 - surface["smoothness"]
