@@ -10,6 +10,7 @@ chi2.py), and a private cache. No Blender here: the tiers are folders,
 render/ and slow/ take Blender's fixtures from blender_fixtures.py."""
 
 import os
+import shutil
 import signal
 import sys
 import tempfile
@@ -39,6 +40,10 @@ def pytest_sessionfinish(session, exitstatus):
 
 def pytest_unconfigure(config):
     if "bpy" in sys.modules:
+        # Blender's own session folder (/tmp/blender_XXXXXX), which its exit would remove
+        session_tmp = Path(sys.modules["bpy"].app.tempdir)
+        if session_tmp.name.startswith("blender_"):
+            shutil.rmtree(session_tmp, ignore_errors=True)
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(_EXIT["status"])
@@ -57,3 +62,11 @@ def alarm():
     yield
     signal.alarm(0)
     signal.signal(signal.SIGALRM, old)
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "one_series: its subject does not depend on Blender's version; CI runs it on the "
+        "newest series only (./scripts/test.sh --series-subset leaves it out)",
+    )

@@ -33,8 +33,8 @@ def configure(
     Only the active view layer renders, with the Material Index pass; no compositor. What it
     changes that the user might not expect goes into ``notes``; returns (width, height)."""
     width, height = image_size(scene, size)
+    renderer.set_converging_cycles(scene, osl, samples, seed)
     r = scene.render
-    r.engine = 'CYCLES'
     r.resolution_x, r.resolution_y = width, height
     r.resolution_percentage = 100
     r.pixel_aspect_x = r.pixel_aspect_y = 1.0
@@ -44,17 +44,6 @@ def configure(
     r.use_single_layer = True
     r.use_persistent_data = False
     scene.camera = camera
-    cy = scene.cycles
-    cy.device = 'CPU'
-    cy.shading_system = osl
-    cy.samples = samples
-    cy.seed = seed
-    cy.use_animated_seed = False
-    cy.use_denoising = False
-    cy.use_adaptive_sampling = False
-    if hasattr(cy, "time_limit"):
-        cy.time_limit = 0.0
-    renderer.set_exact_path_tracing(scene)
     layer = bpy.context.view_layer
     layer.use_pass_material_index = True
     if layer.material_override is not None:

@@ -67,15 +67,8 @@ def configure(
         configure_eevee(scene, view, samples, pixel_centres)
         _view_transform(scene, view)
         return
-    scene.render.engine = 'CYCLES'
+    set_converging_cycles(scene, shader == "osl", samples, seed)
     cy = scene.cycles
-    cy.device = 'CPU'
-    cy.shading_system = shader == "osl"
-    cy.use_denoising = False
-    cy.use_adaptive_sampling = False
-    set_exact_path_tracing(scene)
-    cy.seed = seed
-    cy.use_animated_seed = False
     if shader != "principled" and (view in EXACT_VIEWS or pixel_centres):
         cy.samples = 1
         cy.pixel_filter_type = 'BOX'
@@ -110,6 +103,26 @@ EXACT_PATH_TRACING = {
 def set_exact_path_tracing(scene: bpy.types.Scene) -> None:
     for key, value in EXACT_PATH_TRACING.items():
         setattr(scene.cycles, key, value)
+
+
+def set_converging_cycles(scene: bpy.types.Scene, osl: bool, samples: int, seed: int) -> None:
+    """The one place Cook-Torrance Lab sets Cycles for a render of its own (the matrix, a
+    scene comparison, the world bake): Cycles on the CPU, OSL on or off, ``samples`` with a
+    fixed ``seed``, no denoiser, no adaptive sampling, no time limit, and exact path tracing,
+    so a render converges to the integral it estimates and two renders draw the same random
+    numbers. Callers set what is theirs (filter, bounces, resolution) after it."""
+    scene.render.engine = 'CYCLES'
+    cy = scene.cycles
+    cy.device = 'CPU'
+    cy.shading_system = osl
+    cy.samples = samples
+    cy.seed = seed
+    cy.use_animated_seed = False
+    cy.use_denoising = False
+    cy.use_adaptive_sampling = False
+    if hasattr(cy, "time_limit"):
+        cy.time_limit = 0.0
+    set_exact_path_tracing(scene)
 
 
 def inexact_path_tracing(scene: bpy.types.Scene) -> list:

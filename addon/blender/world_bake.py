@@ -269,22 +269,18 @@ def summary(world: bpy.types.World) -> str:
 
 
 def _configure(scene: bpy.types.Scene, width: int) -> None:
+    from . import renderer
+
+    renderer.set_converging_cycles(scene, False, 1, 0)  # one sample at each pixel centre
     r = scene.render
-    r.engine = 'CYCLES'
     r.resolution_x, r.resolution_y, r.resolution_percentage = width, width // 2, 100
     r.film_transparent = False
     r.use_persistent_data = False
     r.use_compositing = False
     r.use_sequencer = False
     cy = scene.cycles
-    cy.device = 'CPU'
-    cy.shading_system = False
-    cy.samples = 1  # one sample at each pixel centre: the world there
-    cy.pixel_filter_type = 'BOX'
+    cy.pixel_filter_type = 'BOX'  # the world at each pixel centre
     cy.filter_width = 0.01
-    cy.use_denoising = False
-    cy.use_adaptive_sampling = False
-    cy.seed = 0
     cy.max_bounces = 0
     vs = scene.view_settings
     vs.view_transform = 'Standard'

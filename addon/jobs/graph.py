@@ -130,7 +130,7 @@ def plan_merge_outputs(plan: dict) -> list:
     return names
 
 
-def make_plan(job: str, base: MatrixSettings, samples: int, **extra) -> dict:
+def plan_job(job: str, base: MatrixSettings, samples: int, **extra) -> dict:
     """The job's plan: its spec (base settings, samples, the parity HDRIs), a render task
     per folder, and the merge."""
     spec = {"base": settings_to_dict(base), "samples": samples}
@@ -146,7 +146,7 @@ def make_plan(job: str, base: MatrixSettings, samples: int, **extra) -> dict:
     return jobgraph.make_plan(job, spec, env, tasks, merge_outputs(job, spec))
 
 
-def write_plan(
+def write_job_folder(
     job_dir: Path, plan: dict, openjd: bool = False, replace: bool = False, flamenco: bool = False
 ) -> None:
     """JOB/plan.json (with ``openjd`` JOB/openjd/template.json, with ``flamenco``
@@ -314,10 +314,10 @@ def run_matrix(
     task graph run here (``workers``: render tasks as local processes); a render done
     already for the same settings and versions is kept."""
     events = events or pipeline.Events()
-    plan = make_plan("matrix", base, samples)
+    plan = plan_job("matrix", base, samples)
     check_writable(out)
     pipeline._forget_report(out)
-    write_plan(out, plan, replace=True)
+    write_job_folder(out, plan, replace=True)
     return run_graph(plan, out, events, verbose, workers)
 
 
@@ -338,10 +338,10 @@ def run_parity(
     single HDRI given a name (the lights file's stem). Returns the verdict, the report and
     each run's comparison. Its task graph, run here."""
     events = events or pipeline.Events()
-    plan = make_plan("parity", base, samples, hdris=hdris, name=name)
+    plan = plan_job("parity", base, samples, hdris=hdris, name=name)
     check_writable(out)
     pipeline._forget_report(out)
-    write_plan(out, plan, replace=True)
+    write_job_folder(out, plan, replace=True)
     return run_graph(plan, out, events, verbose, workers)
 
 

@@ -18,6 +18,10 @@ from addon.core.errors import UserError
 from addon.core.hdri import write_float_exr
 from addon.jobs import cli
 
+# The cache's entries: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 SMALL = ["--grid", "2x2", "--size", "32", "--samples", "1"]
 
 # The rows of docs/bad-input.md that these tests hold (test_bad_input checks the table lists

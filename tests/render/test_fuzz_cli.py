@@ -10,6 +10,10 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from addon.jobs import cli
 
+# Argparse and the option checks: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 # Values chosen to hit every check: hostile numbers (negative, huge, non-finite, float32
 # overflow), malformed lists, odd tokens. A command line is either valid (it renders a 16- or
 # 24-px image with one sample) or valid but for one hostile token, so that both outcomes are

@@ -174,6 +174,7 @@ def test_second_bake_is_a_cache_hit_and_rewrites_nothing(tmp_path, forest_bake):
 
 
 def test_a_failed_bake_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))  # its own: no other test's bake
     path = tmp_path / "noise.exr"
     write_float_exr(path, np.random.default_rng(7).random((32, 64, 3)).astype(np.float32))
     calls = []
@@ -304,6 +305,7 @@ def test_every_level_of_a_real_size_source_against_a_direct_convolution(tmp_path
         assert np.median(rel) < 0.002 and rel.max() < 0.015, (width, k, np.median(rel), rel.max())
 
 
+@pytest.mark.one_series  # numpy's integration, the same on every Blender series
 def test_the_shipped_tables_are_what_integrating_them_gives(tmp_path, monkeypatch):
     """The extension ships the model's tables, DFG and dominant direction (addon/data,
     scripts/build_tables.py) so that a first bake, or the first OSL material, need not

@@ -19,6 +19,10 @@ from addon.core.hdri import write_float_exr
 from addon.jobs import cli
 from helpers import one_line
 
+# Job folders as input: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 TINY = ["--grid", "1x1", "--size", "32", "--samples", "1"]
 
 # The rows of docs/bad-input.md that these tests hold (test_bad_input checks the table lists

@@ -264,7 +264,9 @@ def test_drivers_keep_the_key_light_in_sync_with_the_sun(tmp_path):
     assert irr == pytest.approx((3.0, 3.0, 3.0))  # the driver wrote the new strength
 
 
-EEVEE_VIEWS = ("F", "NdotV", "albedo", "diffuse_brdf", "G", "indirect_diffuse", "full")
+# NdotV and albedo are left out: F and diffuse_brdf are smooth functions of both, so a wrong
+# attribute in EEVEE shows there (each view is a shader compile of EEVEE's, seconds each)
+EEVEE_VIEWS = ("F", "diffuse_brdf", "G", "indirect_diffuse", "full")
 
 
 def test_eevee_renders_the_group_like_cycles(tmp_path):
@@ -285,7 +287,7 @@ def test_eevee_renders_the_group_like_cycles(tmp_path):
         a = cyc[view][mask].astype(np.float64)
         b = eev[view][mask].astype(np.float64)
         rel = np.abs(a - b) / np.maximum(np.abs(a), 1e-3)
-        if view in ("F", "NdotV", "albedo", "diffuse_brdf"):
+        if view in ("F", "diffuse_brdf"):
             assert rel.max() < 3e-3, (view, rel.max())
         else:
             assert np.median(rel) < 1e-3 and np.percentile(rel, 95) < 0.1, (

@@ -16,6 +16,10 @@ from addon.core.errors import UserError
 from addon.jobs import cli
 from addon.jobs.cli.options import parse_grid, parse_vector
 
+# The option checks: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 RENDER = ["render", "--shader", "nodes", "--view", "NdotL", *TINY]
 SMALL = ["--grid", "2x2", "--size", "32", "--samples", "1"]
 

@@ -17,6 +17,10 @@ from addon.core import cache, paths
 from addon.core.errors import UserError
 from addon.jobs import cli
 
+# The path gate: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 RENDER = ["render", "--shader", "nodes", "--view", "NdotL", *TINY]
 
 # The rows of docs/bad-input.md that these tests hold (test_bad_input checks the table lists

@@ -19,6 +19,10 @@ from addon.core import files
 from addon.core.compare import read_image
 from addon.core.hdri import write_float_exr
 
+# Signals and processes: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 # The rows of docs/bad-input.md that these tests hold (test_bad_input checks the table lists
 # them and that each names a test here): ID -> the test.
 CASES = {

@@ -24,6 +24,10 @@ from addon.core import jobgraph
 from addon.core.compare import read_image
 from addon.jobs import cli
 
+# The task graph's processes, plans and merges: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 CTLAB = [sys.executable, str(ROOT / "scripts" / "ctlab.py")]
 JOB = ["--grid", "2x2", "--size", "48", "--samples", "4"]
 OPENJD = shutil.which("openjd", path=os.path.dirname(sys.executable)) or shutil.which("openjd")

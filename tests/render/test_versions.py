@@ -101,6 +101,8 @@ def test_osl_texture_convention_is_what_compat_says(tmp_path):
         text.from_string(src)
         node = nt.nodes.new("ShaderNodeScript")
         node.mode = 'INTERNAL'
+        import tempfile
+        tempfile.tempdir = {str(tmp_path)!r}  # where Cycles leaves its .oso
         node.script = text
         from cycles import osl
         osl.update_script_node(node, lambda kind, msg: None)

@@ -20,6 +20,10 @@ from addon.core.errors import UserError
 from addon.core.hdri import write_float_exr
 from addon.jobs import cli
 
+# Where ctlab writes: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 RENDER = ["render", "--shader", "nodes", "--view", "NdotL", *TINY]
 SMALL = ["--grid", "2x2", "--size", "32", "--samples", "1"]
 

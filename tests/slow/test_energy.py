@@ -11,6 +11,10 @@ from addon.core import energy
 from addon.core.compare import read_image
 from reference_model import specular_albedo
 
+# The white furnace: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 
 def _expected_image(scene, g_model):
     """Per pixel, the quadrature's E(n.v) (interpolated on a grid of n.v) at that pixel's n.v."""

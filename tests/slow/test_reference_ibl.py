@@ -12,6 +12,10 @@ from helpers import render, sphere_pixels
 from reference_model import terms
 from addon.core.hdri import write_float_exr
 
+# The reference integration's convergence: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 
 @pytest.fixture(scope="module")
 def sky(tmp_path_factory):

@@ -26,6 +26,10 @@ from addon.blender import compat, osl_shader, pixel_grid, renderer
 from addon.core.env_importance import tables_for
 from addon.core.hdri import write_float_exr
 
+# The samplers' distributions: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 PROBE = ROOT / "tests" / "osl" / "sampling_probe.osl"
 SIZE = 1024  # the renders: SIZE x SIZE pixels
 assert (chi2.EVAL_ROWS, chi2.EVAL_COLS) == (SIZE, SIZE)

@@ -24,6 +24,10 @@ from addon.core.settings import MatrixSettings
 from addon.blender.comparison_render import save_layers
 from addon.core.compare import read_material_index
 
+# The residual's bounds: the same on every Blender series, so run on one
+# (docs/testing.md, "Which tests run on both series").
+pytestmark = pytest.mark.one_series
+
 SMITH = "smith_ggx_correlated"
 OTHER_G = ("cook_torrance", "unity_smith_joint")
 SAMPLES = 16  # the comparisons are per sample: few will do

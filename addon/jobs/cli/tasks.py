@@ -35,8 +35,8 @@ def run_plan(args) -> None:
     fill_defaults(args, "parity" if args.parity else "matrix")
     job, base, extra = job_inputs(args)
     out = check_path(args.out, "--out")
-    plan = graph.make_plan(job, base, args.samples, **extra)
-    graph.write_plan(out, plan, openjd=args.openjd, flamenco=args.flamenco)
+    plan = graph.plan_job(job, base, args.samples, **extra)
+    graph.write_job_folder(out, plan, openjd=args.openjd, flamenco=args.flamenco)
     renders = [t for t in plan["tasks"] if t["kind"] == "render"]
     say(
         f"planned the {job} job: {len(renders)} render tasks and a merge -> "
