@@ -21,9 +21,13 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
-_CACHE = tempfile.mkdtemp(prefix="ctlab-test-cache-")
-os.environ.setdefault("CTLAB_CACHE", _CACHE)
-os.environ.setdefault("XDG_CACHE_HOME", _CACHE)
+# A private cache for the session, made by the first process (the workers inherit it) and
+# removed by that process at the end; a CTLAB_CACHE set by the caller is theirs, kept.
+_CACHE = None
+if "CTLAB_CACHE" not in os.environ:
+    _CACHE = tempfile.mkdtemp(prefix="ctlab-test-cache-")
+    os.environ["CTLAB_CACHE"] = _CACHE
+os.environ.setdefault("XDG_CACHE_HOME", os.environ["CTLAB_CACHE"])
 
 
 # Blender as a module can hang when the process exits: in the fresh-clone CI on bpy 4.5.15 the
@@ -39,6 +43,8 @@ def pytest_sessionfinish(session, exitstatus):
 
 
 def pytest_unconfigure(config):
+    if _CACHE is not None:
+        shutil.rmtree(_CACHE, ignore_errors=True)
     if "bpy" in sys.modules:
         # Blender's own session folder (/tmp/blender_XXXXXX), which its exit would remove
         session_tmp = Path(sys.modules["bpy"].app.tempdir)
