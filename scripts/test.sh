@@ -26,6 +26,10 @@ for a in "$@"; do
   fi
 done
 workers="${CTLAB_TEST_WORKERS:-}"
+if [ -n "$workers" ] && ! [[ "$workers" =~ ^[0-9]+$ ]]; then
+  echo "ctlab: error: CTLAB_TEST_WORKERS=$workers is not a number of workers (0 or more)" >&2
+  exit 2
+fi
 if [ -z "$workers" ]; then
   workers="$(nproc 2>/dev/null || echo 1)"
   [ "$workers" -gt 4 ] && workers=4

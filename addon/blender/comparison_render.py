@@ -42,7 +42,6 @@ def configure(
     r.use_compositing = False
     r.use_sequencer = False
     r.use_single_layer = True
-    r.use_persistent_data = False
     scene.camera = camera
     layer = bpy.context.view_layer
     layer.use_pass_material_index = True

@@ -85,7 +85,6 @@ def configure(
             'NONE' if not path_traced and _only_the_model(scene) else 'AUTOMATIC'
         )
     scene.render.film_transparent = False
-    scene.render.use_persistent_data = False
     _view_transform(scene, view)
 
 
@@ -108,10 +107,12 @@ def set_exact_path_tracing(scene: bpy.types.Scene) -> None:
 def set_converging_cycles(scene: bpy.types.Scene, osl: bool, samples: int, seed: int) -> None:
     """The one place Cook-Torrance Lab sets Cycles for a render of its own (the matrix, a
     scene comparison, the world bake): Cycles on the CPU, OSL on or off, ``samples`` with a
-    fixed ``seed``, no denoiser, no adaptive sampling, no time limit, and exact path tracing,
-    so a render converges to the integral it estimates and two renders draw the same random
-    numbers. Callers set what is theirs (filter, bounces, resolution) after it."""
+    fixed ``seed``, no denoiser, no adaptive sampling, no time limit, no persistent data,
+    and exact path tracing, so a render converges to the integral it estimates and two
+    renders draw the same random numbers. Callers set what is theirs (filter, bounces,
+    resolution) after it."""
     scene.render.engine = 'CYCLES'
+    scene.render.use_persistent_data = False
     cy = scene.cycles
     cy.device = 'CPU'
     cy.shading_system = osl

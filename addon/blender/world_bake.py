@@ -275,7 +275,6 @@ def _configure(scene: bpy.types.Scene, width: int) -> None:
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage = width, width // 2, 100
     r.film_transparent = False
-    r.use_persistent_data = False
     r.use_compositing = False
     r.use_sequencer = False
     cy = scene.cycles
