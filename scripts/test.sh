@@ -7,8 +7,9 @@
 # series: see docs/testing.md "Which tests run on both series").
 #
 # A run of more than the unit tier spreads the test files over worker processes
-# (pytest-xdist, a file's tests kept together so its shared renders are made once): one per
-# core, at most 4; CTLAB_TEST_WORKERS sets the number (0: one process, no workers).
+# (pytest-xdist, a file's tests kept together so its shared renders are made once), the
+# longest files first (tests/conftest.py LONGEST_FILES): one per core, at most 4;
+# CTLAB_TEST_WORKERS sets the number (0: one process, no workers).
 source "$(dirname "${BASH_SOURCE[0]}")/bootstrap.sh"
 cd "$ROOT"
 if [ "${1:-}" = "--lint-only" ]; then         # ruff (ruff.toml): lint and format, no tests
@@ -35,6 +36,6 @@ if [ -z "$workers" ]; then
   [ "$workers" -gt 4 ] && workers=4
 fi
 if [ "$quick" = 0 ] && [ "$workers" -gt 1 ]; then
-  args=(-n "$workers" --dist loadfile "${args[@]}")
+  args=(-n "$workers" --dist loadfile --no-loadscope-reorder "${args[@]}")
 fi
 exec "$PY" -m pytest "${where[@]}" -ra "${args[@]}"

@@ -27,6 +27,13 @@ _CACHE = None
 if "CTLAB_CACHE" not in os.environ:
     _CACHE = tempfile.mkdtemp(prefix="ctlab-test-cache-")
     os.environ["CTLAB_CACHE"] = _CACHE
+# Mesa's shader cache (EEVEE's shaders as llvmpipe compiled them) stays where the driver keeps
+# it by default, $XDG_CACHE_HOME or ~/.cache: under the private XDG_CACHE_HOME below, EEVEE
+# would compile its own shaders cold in every session (its first render: 47 s on 5.2, against
+# 5 s with the driver's cache warm). The first run on a machine still pays it.
+os.environ.setdefault(
+    "MESA_SHADER_CACHE_DIR", os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+)
 os.environ.setdefault("XDG_CACHE_HOME", os.environ["CTLAB_CACHE"])
 
 
@@ -76,3 +83,39 @@ def pytest_configure(config):
         "one_series: its subject does not depend on Blender's version; CI runs it on the "
         "newest series only (./scripts/test.sh --series-subset leaves it out)",
     )
+
+
+# The files that take longest (seconds, 5.2, one process, measured with --durations=0 on
+# 2 cores; docs/testing.md), heaviest first. Over workers (./scripts/test.sh, xdist's
+# --dist loadfile --no-loadscope-reorder) files are handed out in collection order, so a
+# worker never starts a long file last while the other has nothing left: the longest go
+# first, the short ones fill in. Only the order changes, and only in workers.
+LONGEST_FILES = (
+    "slow/test_scene_transport.py",  # 185: 24 converged renders, the residual quadratures
+    "slow/test_scene_transport_nodes.py",  # 150: 36 world renders
+    "render/test_task_graph.py",  # 115: the main job as processes, the killed task
+    "render/test_node_group.py",  # 100: EEVEE against Cycles, every term view
+    "render/test_ui.py",  # 70
+    "slow/test_scene_residual.py",  # 68
+    "render/test_ibl_bake.py",  # 55
+    "render/test_scene_job.py",  # 52
+    "slow/test_brdf_plot.py",  # 50
+    "render/test_cli.py",  # 49
+    "render/test_baked_modes.py",  # 46
+    "render/test_travel.py",  # 42
+    "render/test_writes.py",  # 40
+    "render/test_lights.py",  # 40
+    "render/test_fuzz_cli.py",  # 37
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    rank = {name: k for k, name in enumerate(LONGEST_FILES)}
+
+    def key(item):
+        path = Path(str(item.path)).resolve().relative_to(ROOT / "tests").as_posix()
+        return rank.get(path, len(rank))
+
+    items.sort(key=key)  # stable: a file's tests keep their order

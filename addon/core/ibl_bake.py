@@ -167,16 +167,18 @@ def _disney_factor(nv: np.ndarray, pr: float, n: int = 64) -> np.ndarray:
     return np.mean((1 + (fd90 - 1) * (1 - lz) ** 5) * (1 + (fd90 - 1) * (1 - nv) ** 5), axis=(1, 2))
 
 
-def dfg_table(g_model: str, size: int = DFG_SIZE, samples=None) -> np.ndarray:
+def dfg_table(g_model: str, size: int = DFG_SIZE, samples=None, rows=None) -> np.ndarray:
     """(size, size, 3) float32: row j is pr = j/(size - 1), column i is n.v = i/(size - 1)
-    (n.v >= DFG_MIN_NDOTV); channels: A, B (specColor scale and bias), the Disney factor."""
+    (n.v >= DFG_MIN_NDOTV); channels: A, B (specColor scale and bias), the Disney factor.
+    ``rows``: only those rows j, in that order (each row is integrated on its own)."""
     samples = samples or DFG_SAMPLES[g_model]
     x = dfg_axis(size)
     nv = np.maximum(x, DFG_MIN_NDOTV)
-    table = np.zeros((size, size, 3))
-    for j, pr in enumerate(x):
-        table[j, :, 0], table[j, :, 1] = _specular_scale_bias(g_model, nv, pr, *samples)
-        table[j, :, 2] = _disney_factor(nv, pr)
+    rows = range(size) if rows is None else list(rows)
+    table = np.zeros((len(rows), size, 3))
+    for k, j in enumerate(rows):
+        table[k, :, 0], table[k, :, 1] = _specular_scale_bias(g_model, nv, x[j], *samples)
+        table[k, :, 2] = _disney_factor(nv, x[j])
     return table.astype(np.float32)
 
 
@@ -242,22 +244,23 @@ def dominant_values(g_model: str) -> np.ndarray:
     return dominant_table(g_model) if table is None else table
 
 
-def dominant_table(g_model: str, size: int = DFG_SIZE) -> np.ndarray:
+def dominant_table(g_model: str, size: int = DFG_SIZE, rows=None) -> np.ndarray:
     """(size, size): per (n.v, pr) on the DFG table's axes, the t for which
     normalize(mix(n, r, t)) points at the centroid of the lobe f_s (n.l) (F = 1) of this D and
     G: the split-sum's dominant direction computed for the model, where Lagarde and de Rousiers
     (2014, listing 22) fit t = (1 - a)(sqrt(1 - a) + a) to Smith's G. With the centroid at
     angle c from n and r at angle theta_v: tan c = t sin / (1 - t + t cos), so
-    t = tan c / (sin theta_v + tan c (1 - cos theta_v))."""
+    t = tan c / (sin theta_v + tan c (1 - cos theta_v)). ``rows``: as dfg_table's."""
     x = dfg_axis(size)
     nv = np.maximum(x, DFG_MIN_NDOTV)
     sv = np.sqrt(1.0 - nv * nv)
-    table = np.ones((size, size))
-    for j, pr in enumerate(x):
-        cx, cz = _specular_scale_bias(g_model, nv, pr, *DFG_SAMPLES[g_model], centroid=True)
+    rows = range(size) if rows is None else list(rows)
+    table = np.ones((len(rows), size))
+    for k, j in enumerate(rows):
+        cx, cz = _specular_scale_bias(g_model, nv, x[j], *DFG_SAMPLES[g_model], centroid=True)
         tan_c = -cx / np.maximum(cz, 1e-12)
         den = sv + tan_c * (1.0 - nv)
-        table[j] = np.where(den > 1e-6, tan_c / np.where(den > 1e-6, den, 1.0), 1.0)
+        table[k] = np.where(den > 1e-6, tan_c / np.where(den > 1e-6, den, 1.0), 1.0)
     return np.clip(table, 0.0, 1.0).astype(np.float32)
 
 

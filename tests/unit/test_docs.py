@@ -83,3 +83,19 @@ def test_the_readme_is_a_front_page():
         assert f"(docs/{page}.md)" in text, page
     # the two commands, as .ci/run and a fresh machine use them
     assert "./scripts/ctlab.sh matrix" in text and "./scripts/test.sh" in text
+
+
+def test_the_longest_files_named_for_the_workers_exist():
+    """tests/conftest.py hands the longest files to the workers first: a renamed or removed
+    file would silently fall to the end of the queue."""
+    import ast
+
+    tests = ROOT / "tests"
+    tree = ast.parse((tests / "conftest.py").read_text())
+    (names,) = [
+        ast.literal_eval(node.value)
+        for node in tree.body
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "LONGEST_FILES"
+    ]
+    assert len(names) > 10
+    assert not [name for name in names if not (tests / name).is_file()]
