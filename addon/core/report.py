@@ -119,8 +119,8 @@ energy single scattering loses on rough metals. What is left after all three is 
 energy-conserving layering (its diffuse is weighted by what the specular layer does not
 reflect, where the model uses the fixed 1 - 0.04 of Unity), its dielectric Fresnel (IOR 1.5
 against Schlick at F0 = 0.04), and render noise. Its renders, the seed model and Principled
-included, are half the main render's size (its spheres kept at least 3 px across their radius;
-each folder's scene.json has the size): the same samples per pixel on a quarter of the pixels,
+included, are 3/8 of the main render's size (its spheres kept at least 3 px across their radius;
+each folder's scene.json has the size): the same samples per pixel on a seventh of the pixels,
 so its per-sphere means keep their meaning, and its first row is close to, not equal to, the
 comparison above.</p>"""
 

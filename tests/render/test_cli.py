@@ -96,11 +96,11 @@ def test_matrix_main_job_writes_a_report(tmp_path):
         "compare_split_sum_corrected",
     ):
         assert len(json.loads((out / cmp_dir / "metrics.json").read_text())["cells"]) == 4
-    # the attribution's renders at half the size (24 px, its spheres still over 3 px across
+    # the attribution's renders at 3/8 of the size (18 px, its spheres still over 3 px across
     # their radius: four cells), its seed model and Principled among them; the rest at 48
     for folder in ("attr_seed", "attr_principled", "attr_smith", "attr_compensated"):
         scene = json.loads((out / folder / "scene.json").read_text())
-        assert (scene["width"], scene["height"]) == (24, 24), folder
+        assert (scene["width"], scene["height"]) == (18, 18), folder
     assert json.loads((out / "principled" / "scene.json").read_text())["width"] == 48
     assert len(json.loads((out / "compare_attr_seed" / "metrics.json").read_text())["cells"]) == 4
     assert "Attribution" in html and "G: Cook-Torrance to Smith" in html
