@@ -27,7 +27,13 @@ from ..core.hdri import load_hdri
 from ..core.files import check_writable, forget_report, refuse_overwrite
 from ..core.model import BAKED_IBL_MODES, DEFAULT_TRANSPORT, G_MODELS, LAB
 from ..core.paths import safe_name
-from ..core.settings import MIN_SPHERE_PX, MatrixSettings, with_overrides, world_to_pixel
+from ..core.settings import (
+    MIN_SPHERE_PX,
+    SIZE_RANGE,
+    MatrixSettings,
+    with_overrides,
+    world_to_pixel,
+)
 
 
 def _nothing(*_args) -> None:
@@ -229,11 +235,13 @@ ATTRIBUTION_SCALE = 0.375
 
 def attribution_size(base: MatrixSettings) -> dict:
     """The attribution's image size: 3/8 of the main render's (a seventh of its pixels),
-    but its spheres at least MIN_SPHERE_PX across their radius. Its figures are per-sphere
-    means of per-pixel differences at the same samples per pixel, so they keep their meaning
-    on fewer pixels; all its steps, the seed model and Principled included, share the size."""
+    but its spheres at least MIN_SPHERE_PX across their radius and its sides at least the
+    smallest image size (SIZE_RANGE). Its figures are per-sphere means of per-pixel
+    differences at the same samples per pixel, so they keep their meaning on fewer pixels;
+    all its steps, the seed model and Principled included, share the size."""
     radius_px = base.radius * world_to_pixel(base, (0.0, 0.0, 0.0))[1]
-    scale = min(1.0, max(ATTRIBUTION_SCALE, MIN_SPHERE_PX / radius_px))
+    least = max(MIN_SPHERE_PX / radius_px, SIZE_RANGE[0] / min(base.width, base.height))
+    scale = min(1.0, max(ATTRIBUTION_SCALE, least))
     return {"width": math.ceil(base.width * scale), "height": math.ceil(base.height * scale)}
 
 

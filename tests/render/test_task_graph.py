@@ -367,10 +367,15 @@ def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path, s
     random.Random(27).shuffle(tasks)
     # one task killed while it renders: its folder appears as the render starts
     victim = tasks[0]
+    # SIGKILL leaves what the victim had in its temporary folder (Blender's session folder,
+    # an OSL compile's .oso): a folder of the test's own, not the machine's /tmp
+    victim_tmp = tmp_path / "victim-tmp"
+    victim_tmp.mkdir()
     proc = subprocess.Popen(
         CTLAB + ["task", str(job), victim["id"]],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        env=dict(os.environ, TMPDIR=str(victim_tmp)),
     )
     deadline = time.monotonic() + 120
     while (
