@@ -1,8 +1,7 @@
-"""The command line: scene.json, the main job end to end, and bad input (one line, exit 2,
-nothing written)."""
+"""The command line: ``ctlab render`` and its scene.json, and the parity job. (The main job
+end to end is in test_task_graph.py, beside its run as tasks, from one run of it.)"""
 
 import json
-import re
 import os
 import subprocess
 import sys
@@ -59,60 +58,6 @@ def test_render_writes_exr_png_and_scene_json(tmp_path):
         x, y = (int(v) for v in c["center_px"])
         assert img[y, x, 0] > 0.99
     assert img[0, 0, 0] != pytest.approx(1.0, abs=0.01)  # a corner: the world
-
-
-def test_matrix_main_job_writes_a_report(tmp_path):
-    out = tmp_path / "m"
-    p = run("matrix", "--out", out, "--grid", "2x2", "--size", "48", "--samples", "4")
-    assert p.returncode == 0, p.stderr + p.stdout
-    from addon.jobs.pipeline import FURNACE_RENDERS, MATRIX_RENDERS
-
-    steps = len(MATRIX_RENDERS) + len(FURNACE_RENDERS) + 2  # and comparing, the report
-    assert f"[1/{steps}]" in p.stdout and f"[{steps}/{steps}]" in p.stdout
-    for f in (
-        "report.html",
-        "cook_torrance/render.png",
-        "principled/render.png",
-        "compare/diff.png",
-        "compare/metrics.json",
-    ):
-        assert (out / f).is_file(), f
-    metrics = json.loads((out / "compare" / "metrics.json").read_text())
-    assert len(metrics["cells"]) == 4
-    for key in ("mae", "rmse", "psnr_db", "ciede2000_mean"):
-        assert np.isfinite(metrics["overall"][key])
-    html = (out / "report.html").read_text()
-    assert "cook_torrance/render.png" in html and "compare/diff.png" in html
-    for study in ("split_sum", "unity", "nodes"):
-        assert f"{study}/render.png" in html and f"compare_{study}/diff.png" in html
-        cells = json.loads((out / f"compare_{study}" / "metrics.json").read_text())["cells"]
-        assert all(np.isfinite(c["rel_luminance_error"]) for c in cells)
-    # the attribution: the error against Principled after each switch, per cell
-    for cmp_dir in (
-        "compare_attr_smith",
-        "compare_attr_smith_lambert",
-        "compare_attr_ggx",
-        "compare_attr_compensated",
-        "compare_split_sum_corrected",
-    ):
-        assert len(json.loads((out / cmp_dir / "metrics.json").read_text())["cells"]) == 4
-    # the attribution's renders at 3/8 of the size (18 px, its spheres still over 3 px across
-    # their radius: four cells), its seed model and Principled among them; the rest at 48
-    for folder in ("attr_seed", "attr_principled", "attr_smith", "attr_compensated"):
-        scene = json.loads((out / folder / "scene.json").read_text())
-        assert (scene["width"], scene["height"]) == (18, 18), folder
-    assert json.loads((out / "principled" / "scene.json").read_text())["width"] == 48
-    assert len(json.loads((out / "compare_attr_seed" / "metrics.json").read_text())["cells"]) == 4
-    assert "Attribution" in html and "G: Cook-Torrance to Smith" in html
-    assert "energy compensated (against multiscatter Principled)" in html
-    # the white furnace: three renders (each G, Smith's compensated), six roughnesses each
-    assert "Energy: white furnace" in html
-    furnace = html.split("Energy: white furnace", 1)[1].split("</svg>", 1)[0]
-    curves = [
-        m for m in re.findall(r"<polyline points='([^']*)'", furnace) if m.count(",") > 2
-    ]  # the curves, not grid or legend lines
-    assert len(curves) == 18
-    assert not list(out.rglob("*partial*"))
 
 
 def test_parity_renders_metals_against_principled_ggx_for_two_hdris(tmp_path):

@@ -5,11 +5,13 @@ job folders (one line each, naming the tasks to re-run, nothing overwritten).
 The end-to-end tests follow the issue's "done when": a plan run task by task (shuffled, one
 task SIGKILLed while it renders and retried, the rest by ``--workers 2``) merges into the same
 metrics as the single-process job, with identical EXRs (same seed); and the same through
-``openjd run`` of the generated bundle."""
+``openjd run`` of the generated bundle. The single-process main job's own files and report
+are checked here too (one run of it for both)."""
 
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import subprocess
@@ -24,9 +26,10 @@ from addon.core import jobgraph
 from addon.core.compare import read_image
 from addon.jobs import cli
 
-# The task graph's processes, plans and merges: the same on every Blender series, so run on one
-# (docs/testing.md, "Which tests run on both series").
-pytestmark = pytest.mark.one_series
+# The task graph's processes, plans and merges are the same on every Blender series, so their
+# tests run on one (docs/testing.md, "Which tests run on both series"); the main job's report,
+# read from the same single-process run, on both.
+ONE_SERIES = pytest.mark.one_series
 
 CTLAB = [sys.executable, str(ROOT / "scripts" / "ctlab.py")]
 JOB = ["--grid", "2x2", "--size", "48", "--samples", "4"]
@@ -76,6 +79,7 @@ def renders(out):
 # The plan (no renders)
 
 
+@ONE_SERIES
 def test_a_plan_names_each_task_by_its_content(tmp_path):
     a = plan(tmp_path / "a")
     b = plan(tmp_path / "b")
@@ -106,6 +110,7 @@ def test_a_plan_names_each_task_by_its_content(tmp_path):
     assert (tmp_path / "a" / "plan.json").read_bytes() == before
 
 
+@ONE_SERIES
 def test_the_parity_job_plans_two_tasks_per_hdri(tmp_path):
     job = tmp_path / "p"
     assert (
@@ -139,6 +144,7 @@ def test_the_parity_job_plans_two_tasks_per_hdri(tmp_path):
     assert p["tasks"][-1]["kind"] == "merge" and len(p["tasks"][-1]["depends"]) == 4
 
 
+@ONE_SERIES
 def test_the_openjd_bundle_passes_openjd_check(tmp_path):
     if not OPENJD:
         pytest.skip("openjd-cli is not installed (pip install openjd-cli)")
@@ -178,6 +184,7 @@ def _fake_done(job, p, skip=()):
         jobgraph.mark_done(job, t)
 
 
+@ONE_SERIES
 def test_a_merge_names_the_tasks_not_done(tmp_path, capsys):
     job = tmp_path / "j"
     p = plan(job)
@@ -192,6 +199,7 @@ def test_a_merge_names_the_tasks_not_done(tmp_path, capsys):
     assert not (job / "report.html").exists()
 
 
+@ONE_SERIES
 @pytest.mark.parametrize(
     "damage, words",
     [
@@ -226,6 +234,7 @@ def test_a_damaged_task_is_named_and_nothing_is_overwritten(tmp_path, capsys, da
     assert not (job / jobgraph.TASKS_DIR / jobgraph.LOCK_FILE).exists()
 
 
+@ONE_SERIES
 def test_two_merges_at_once_are_refused(tmp_path, capsys):
     job = tmp_path / "j"
     p = plan(job)
@@ -250,6 +259,7 @@ def test_two_merges_at_once_are_refused(tmp_path, capsys):
     assert not lock.exists()
 
 
+@ONE_SERIES
 def test_a_task_of_other_settings_or_a_bad_plan_is_refused(tmp_path, capsys):
     job = tmp_path / "j"
     p = plan(job)
@@ -281,10 +291,65 @@ def test_a_task_of_other_settings_or_a_bad_plan_is_refused(tmp_path, capsys):
 
 @pytest.fixture(scope="module")
 def single_process(tmp_path_factory):
+    """The main job as one process: (its folder, the finished process)."""
     out = tmp_path_factory.mktemp("single") / "m"
     p = run("matrix", *JOB, "--out", out)
     assert p.returncode == 0, p.stderr + p.stdout
-    return out
+    return out, p
+
+
+def test_matrix_main_job_writes_a_report(single_process):
+    """The main job as one process (the fixture above, ``ctlab matrix``): its steps, files,
+    comparisons, attribution and white furnace. On every Blender series."""
+    out, p = single_process
+    from addon.jobs.pipeline import FURNACE_RENDERS, MATRIX_RENDERS
+
+    steps = len(MATRIX_RENDERS) + len(FURNACE_RENDERS) + 2  # and comparing, the report
+    assert f"[1/{steps}]" in p.stdout and f"[{steps}/{steps}]" in p.stdout
+    for f in (
+        "report.html",
+        "cook_torrance/render.png",
+        "principled/render.png",
+        "compare/diff.png",
+        "compare/metrics.json",
+    ):
+        assert (out / f).is_file(), f
+    metrics = json.loads((out / "compare" / "metrics.json").read_text())
+    assert len(metrics["cells"]) == 4
+    for key in ("mae", "rmse", "psnr_db", "ciede2000_mean"):
+        assert np.isfinite(metrics["overall"][key])
+    html = (out / "report.html").read_text()
+    assert "cook_torrance/render.png" in html and "compare/diff.png" in html
+    for study in ("split_sum", "unity", "nodes"):
+        assert f"{study}/render.png" in html and f"compare_{study}/diff.png" in html
+        cells = json.loads((out / f"compare_{study}" / "metrics.json").read_text())["cells"]
+        assert all(np.isfinite(c["rel_luminance_error"]) for c in cells)
+    # the attribution: the error against Principled after each switch, per cell
+    for cmp_dir in (
+        "compare_attr_smith",
+        "compare_attr_smith_lambert",
+        "compare_attr_ggx",
+        "compare_attr_compensated",
+        "compare_split_sum_corrected",
+    ):
+        assert len(json.loads((out / cmp_dir / "metrics.json").read_text())["cells"]) == 4
+    # the attribution's renders at 3/8 of the size (18 px, its spheres still over 3 px across
+    # their radius: four cells), its seed model and Principled among them; the rest at 48
+    for folder in ("attr_seed", "attr_principled", "attr_smith", "attr_compensated"):
+        scene = json.loads((out / folder / "scene.json").read_text())
+        assert (scene["width"], scene["height"]) == (18, 18), folder
+    assert json.loads((out / "principled" / "scene.json").read_text())["width"] == 48
+    assert len(json.loads((out / "compare_attr_seed" / "metrics.json").read_text())["cells"]) == 4
+    assert "Attribution" in html and "G: Cook-Torrance to Smith" in html
+    assert "energy compensated (against multiscatter Principled)" in html
+    # the white furnace: three renders (each G, Smith's compensated), six roughnesses each
+    assert "Energy: white furnace" in html
+    furnace = html.split("Energy: white furnace", 1)[1].split("</svg>", 1)[0]
+    curves = [
+        m for m in re.findall(r"<polyline points='([^']*)'", furnace) if m.count(",") > 2
+    ]  # the curves, not grid or legend lines
+    assert len(curves) == 18
+    assert not list(out.rglob("*partial*"))
 
 
 def _leaves(data, key=""):
@@ -359,6 +424,7 @@ def _same_job(a, b, comparisons=None, count=None):
     return differed
 
 
+@ONE_SERIES
 def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path, single_process):
     job = tmp_path / "j"
     assert run("plan", "matrix", *JOB, "--out", job).returncode == 0
@@ -402,7 +468,7 @@ def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path, s
     w = run("matrix", *JOB, "--workers", "2", "--out", job)
     assert w.returncode == 0, w.stderr + w.stdout
     assert "worker process" in w.stdout
-    _same_job(single_process, job)
+    _same_job(single_process[0], job)
 
 
 # The bundle is the plan's tasks whatever the job (core/jobgraph/bundles.py): run through openjd
@@ -411,6 +477,7 @@ def test_tasks_shuffled_one_killed_then_workers_merge_as_one_process(tmp_path, s
 PARITY_JOB = ["--grid", "2x1", "--size", "32", "--samples", "4", "--parity-hdris", "forest"]
 
 
+@ONE_SERIES
 def test_the_openjd_bundle_runs_end_to_end(tmp_path):
     if not OPENJD:
         pytest.skip("openjd-cli is not installed (pip install openjd-cli)")
@@ -439,6 +506,7 @@ def test_the_openjd_bundle_runs_end_to_end(tmp_path):
     )
 
 
+@ONE_SERIES
 def test_the_flamenco_job_type_compiles_the_plan(tmp_path):
     """Without a Flamenco Manager: the job compiler script run by Node.js against a stand-in
     for Flamenco's ``author`` API (Task, Command, addCommand, addDependency, job.addTask)."""
@@ -482,6 +550,7 @@ console.log(JSON.stringify(tasks.map((t) => ({ name: t.name, commands: t.command
     assert tasks[-1]["commands"][0]["params"]["args"][1] == "merge"
 
 
+@ONE_SERIES
 def test_a_task_whose_hdri_is_gone_says_so(tmp_path, capsys):
     hdri = tmp_path / "sky.exr"
     from addon.core.hdri import write_float_exr
