@@ -85,27 +85,28 @@ def pytest_configure(config):
     )
 
 
-# The files that take longest (seconds, 5.2, one process, measured with --durations=0 on
-# 2 cores; docs/testing.md), heaviest first. Over workers (./scripts/test.sh, xdist's
+# The files that take longest (seconds of test time, 5.2, summed from --durations over two
+# workers on 2 cores; docs/testing.md), heaviest first. Over workers (./scripts/test.sh, xdist's
 # --dist loadfile --no-loadscope-reorder) files are handed out in collection order, so a
 # worker never starts a long file last while the other has nothing left: the longest go
 # first, the short ones fill in. Only the order changes, and only in workers.
 LONGEST_FILES = (
-    "slow/test_scene_transport.py",  # 185: 24 converged renders, the residual quadratures
-    "slow/test_scene_transport_nodes.py",  # 150: 36 world renders
-    "render/test_task_graph.py",  # 115: the main job as processes, the killed task
-    "render/test_node_group.py",  # 100: EEVEE against Cycles, every term view
-    "render/test_ui.py",  # 70
-    "slow/test_scene_residual.py",  # 68
-    "render/test_ibl_bake.py",  # 55
-    "render/test_scene_job.py",  # 52
-    "slow/test_brdf_plot.py",  # 50
-    "render/test_cli.py",  # 49
-    "render/test_baked_modes.py",  # 46
-    "render/test_travel.py",  # 42
-    "render/test_writes.py",  # 40
-    "render/test_lights.py",  # 40
+    "slow/test_scene_transport_nodes.py",  # 140: 18 world renders, the residual quadratures
+    "slow/test_scene_transport.py",  # 130: 13 converged renders, the mirror in a real scene
+    "render/test_task_graph.py",  # 90: the main job, as processes, the killed task
+    "render/test_node_group.py",  # 75: EEVEE against Cycles, every term view
+    "render/test_ibl_bake.py",  # 65
+    "render/test_ui.py",  # 63
+    "slow/test_scene_residual.py",  # 55
+    "slow/test_brdf_plot.py",  # 52
+    "render/test_scene_job.py",  # 45
+    "render/test_travel.py",  # 45
     "render/test_fuzz_cli.py",  # 37
+    "render/test_baked_modes.py",  # 32
+    "slow/test_reference_ibl.py",  # 32
+    "render/test_light_follow.py",  # 31
+    "render/test_writes.py",  # 30
+    "render/test_lights.py",  # 30
 )
 
 

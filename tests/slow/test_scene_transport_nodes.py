@@ -525,13 +525,8 @@ def test_the_group_sees_the_other_objects(renders):
 # reference IBL).
 
 from test_scene_transport import soft_sky  # noqa: E402,F401  (the smooth sky, a fixture)
+from test_scene_transport import COMBOS as WORLD_COMBOS  # noqa: E402  (pairwise, why there)
 
-WORLD_COMBOS = [
-    (g, d, e)
-    for g in ("cook_torrance", "unity_smith_joint", "smith_ggx_correlated")
-    for d in ("disney", "lambert")
-    for e in ("none", "compensated")
-]
 WORLD_SAMPLES, WORLD_SIZE, WORLD_GRID = 1024, 48, (3, 2)
 # Mean CIEDE2000 per sphere against the model's own integral (the brief's bound, 0.5), at
 # WORLD_SAMPLES on WORLD_SIZE px: where the closures are the model (Smith's G, Lambert) the
@@ -727,6 +722,9 @@ def test_the_correction_is_zero_for_the_closures_own_switches(tmp_path, soft_sky
 # --- The residual albedo -------------------------------------------------------------------
 
 
+_ALBEDOS = {}  # (G, alpha, n) -> the directional albedos of the G's lobe and Smith's, over ms
+
+
 def _residual_quadrature(g_model, diffuse, energy, mu, pr, spec_color, diff_color, n=480):
     """integral of |f_s,model - f_s,closure| (n.l) dl + integral of |f_d,model - f_Lambert|
     (n.l) dl for each n.v in ``mu`` (the closures: Smith's G, Lambert; with energy
@@ -766,11 +764,16 @@ def _residual_quadrature(g_model, diffuse, energy, mu, pr, spec_color, diff_colo
         disney = (1 + (fd90 - 1) * (1 - nl) ** 5) * (1 + (fd90 - 1) * (1 - m) ** 5)
         return base * g, base * smith, f, disney
 
+    ms = np.linspace(0.005, 1, 80)
+    key = (g_model, a, n)
+    if energy != "none" and key not in _ALBEDOS:  # the lobes' directional albedos (no F)
+        both = [lobes(m)[:2] for m in ms]
+        _ALBEDOS[key] = [np.array([float(np.sum(b[w] * nl * dw)) for b in both]) for w in (0, 1)]
+
     def k_ms(which):
         if energy == "none":
             return lambda m: 1.0
-        ms = np.linspace(0.005, 1, 80)
-        E = np.array([float(np.sum(lobes(m)[which] * nl * dw)) for m in ms])
+        E = _ALBEDOS[key][which]
         e_avg = float(np.sum((E * ms)[1:] + (E * ms)[:-1]) * (ms[1] - ms[0]))  # 2 x trapezoids
         f_avg = spec_color + (1 - spec_color) / 21
         f_ms = f_avg * e_avg / (1 - f_avg * (1 - e_avg))
