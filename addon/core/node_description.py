@@ -134,9 +134,11 @@ def _per_light_names(data: dict) -> set:
     }
 
 
-def _refs(tree, found: set) -> set:
+def _refs(tree, found: dict) -> dict:
+    """The names an expression refers to, in the order they first appear (a dict: the
+    group's sockets and nodes come out in the same order in every process)."""
     if tree[0] == "ref":
-        found.add(tree[1])
+        found[tree[1]] = None
     elif tree[0] == "call":
         for a in tree[2]:
             _refs(a, found)
@@ -217,15 +219,15 @@ class LightPlan:
             key: _all_lights(parse(data["scene"][key]), per_light, self.slots)
             for key in SCENE_EXPRESSIONS
         }
-        used_outside = set()
+        used_outside = {}
         for tree in (
             [t for _, t in main.values()] + list(self.views.values()) + list(self.scene.values())
         ):
-            used_outside |= _refs(tree, set())
+            used_outside |= _refs(tree, {})
         globals_used = []
         self.exprs = {}  # the per-light group's nodes
         for name, (frame, tree) in sub.items():
-            for ref in _refs(tree, set()):
+            for ref in _refs(tree, {}):
                 if ref.startswith("light."):
                     if ref[6:] not in self.key_sun:
                         raise UserError(f"node description: the key Sun has no {ref[6:]!r}")
