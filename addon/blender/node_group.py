@@ -14,13 +14,16 @@ loads the baked split-sum files (core/ibl_bake.py) and the scene transport's tab
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import bpy
 
 from ..core.correction_tables import correction_table_folder
 from ..core.errors import UserError
+from ..core.files import DATA_DIR
 from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, SCENE_VIEWS, VIEWS
+from ..core import node_description
 from ..core.node_description import (
     CORRECTION_OUTPUTS,
     DESCRIPTION,
@@ -40,6 +43,8 @@ CORRECTION_GROUP = "ctlab_correction_group"  # tags the correction group
 RESIDUAL_OUTPUT = "Residual Albedo"
 SOURCE_HASH = "ctlab_source_hash"
 GROUP_FILE = "node_group.blend"  # the cache entry's file: the group as built, no images
+SHIPPED = DATA_DIR / GROUP_FILE  # the group as built, shipped (ensure_group)
+SHIPPED_SOURCES = DATA_DIR / "node_group.json"  # its source digest and Blender version
 
 SOCKET_TYPES = {
     "FLOAT": "NodeSocketFloat",
@@ -321,8 +326,9 @@ def _scene_transport(b: Compiler, spec: dict, view_on: list, lab, correction_gro
 
 
 def source_digest() -> str:
-    """What the group is built from: its description, the model's interface, this
-    assembly and the compiler; with Blender's version, the cache key of the built group."""
+    """What the group is built from: its description, the model's interface, its planning
+    (core/node_description.py), this assembly and the compiler; with Blender's version, the
+    cache key of the built group."""
     import hashlib
 
     return hashlib.sha256(
@@ -331,6 +337,7 @@ def source_digest() -> str:
         + repr(GROUP_OUTPUTS).encode()
         + Path(__file__).read_bytes()
         + Path(node_compiler.__file__).read_bytes()
+        + Path(node_description.__file__).read_bytes()
     ).hexdigest()[:16]
 
 
@@ -349,9 +356,12 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
     """The node group, built once: reused when this file has it, built from the current
     description (rebuilding would reset the inputs and links of every material using it);
     else appended from the cache, where the first build in any process put it
-    (``cache_key``: 0.04 s against 3-18 s to build its 1,271 nodes, bench/results.md);
-    else built, and put in the cache. A file holding an older group of ours is rebuilt in
-    place, so that its materials keep it. An unusable cache folder only costs the build."""
+    (``cache_key``), or from the group the extension ships (``SHIPPED``, written by
+    scripts/build_node_group.py with the oldest Blender series, so that every series reads
+    it) where it was built from the same sources: 0.05 s against 3-18 s to build its 1,271
+    nodes (bench/results.md); else built, and put in the cache. A file holding an older
+    group of ours is rebuilt in place, so that its materials keep it. An unusable cache
+    folder only costs the build."""
     digest = source_digest()
     name = load_description()["group"]["name"]
     group = bpy.data.node_groups.get(name)
@@ -359,7 +369,7 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
         return group
     free = not any(n in bpy.data.node_groups for n in _group_names(name))
     if free:
-        appended = _append_cached(digest, name)
+        appended = _append_cached(digest, name) or _append_shipped(digest, name)
         if appended is not None:
             return appended
     group = build_group()
@@ -367,6 +377,19 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
     if free:
         _store(digest, group)
     return group
+
+
+def shipped_digest() -> str | None:
+    """The source digest of the shipped group (SHIPPED_SOURCES), or None without one."""
+    try:
+        return json.loads(SHIPPED_SOURCES.read_text())["digest"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _append_shipped(digest: str, name: str) -> bpy.types.ShaderNodeTree | None:
+    """The shipped group appended, where it was built from these sources."""
+    return _append(SHIPPED, digest, name) if shipped_digest() == digest else None
 
 
 def _append_cached(digest: str, name: str) -> bpy.types.ShaderNodeTree | None:
@@ -378,13 +401,16 @@ def _append_cached(digest: str, name: str) -> bpy.types.ShaderNodeTree | None:
         folder = cache.lookup(cache_key(digest))
     except UserError:
         return None
-    if folder is None:
-        return None
-    with bpy.data.libraries.load(str(folder / GROUP_FILE), link=False) as (source, target):
+    return None if folder is None else _append(folder / GROUP_FILE, digest, name)
+
+
+def _append(path: Path, digest: str, name: str) -> bpy.types.ShaderNodeTree:
+    """The group ``name`` (with the groups it holds) appended from a .blend ctlab wrote."""
+    with bpy.data.libraries.load(str(path), link=False) as (source, target):
         target.node_groups = [n for n in source.node_groups if n == name]
     [group] = target.node_groups
     if group.name != name or group.get(SOURCE_HASH) != digest or not group.get(TAG):
-        raise UserError(f"the cache entry {folder} does not hold the node group {name!r}")
+        raise UserError(f"{path} does not hold the node group {name!r}")
     return group
 
 

@@ -1,5 +1,5 @@
-"""What a new material costs after the first: the node group built once and then
-appended from the cache (blender/node_group.py ``ensure_group``), the OSL shader compiled
+"""What a new material costs after the first: the node group shipped built, or built once
+and then appended from the cache (blender/node_group.py ``ensure_group``), the OSL shader compiled
 once per node with nothing left in TMPDIR (blender/osl_shader.py), and the conversion keeping
 Principled's energy behaviour (blender/convert.py ``ENERGY_OF``). Mechanisms, not timings:
 the timings are in bench/results.md."""
@@ -33,8 +33,9 @@ def _shape(group):
 
 @pytest.fixture
 def builds(monkeypatch, tmp_path):
-    """An empty cache of its own, and a count of the node group's builds."""
+    """An empty cache of its own, no shipped group, and a count of the node group's builds."""
     monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(node_group, "SHIPPED_SOURCES", tmp_path / "no-shipped-group.json")
     count = {"builds": 0}
     build = node_group.build_group
 
@@ -85,6 +86,98 @@ def test_the_node_group_is_built_once_then_appended(builds, tmp_path):
     blend.write_bytes(blend.read_bytes()[:1000])  # damaged: the manifest no longer matches
     assert _shape(node_group.ensure_group()) == shape
     assert builds["builds"] == 2  # built again, not read from the damaged file
+
+
+# What describes a node besides its place on the canvas and its selection
+_LAYOUT = {"location", "width", "height", "select", "name", "hide", "show_options",
+           "show_preview", "show_texture", "mute", "color", "use_custom_color", "dimensions",
+           "width_hidden", "location_absolute", "bl_width_default", "bl_height_default",
+           "bl_width_min", "bl_width_max", "bl_height_min", "bl_height_max"}  # fmt: skip
+
+
+_ITEM_VALUES = ("default_value", "min_value", "max_value")
+
+
+def _value(v):
+    return tuple(v) if hasattr(v, "__len__") and not isinstance(v, str) else v
+
+
+def _describe(group):
+    """Every tree of the group (named without the group's own name): its interface, and
+    each node's type, settings, parent, sub-group and unlinked input values, and the links."""
+    base, out, pending = group.name, {}, [group]
+    while pending:
+        tree = pending.pop()
+        key = tree.name.replace(base, "<group>")
+        if key in out:
+            continue
+        items = [
+            (i.item_type, i.name, getattr(i, "in_out", None), getattr(i, "socket_type", None))
+            + tuple(_value(getattr(i, a, None)) for a in _ITEM_VALUES)
+            for i in tree.interface.items_tree
+        ]
+        nodes = {}
+        for n in tree.nodes:
+            settings = {
+                p.identifier: _value(getattr(n, p.identifier))
+                for p in n.bl_rna.properties
+                if p.identifier not in _LAYOUT
+                and not p.is_readonly
+                and p.type in {"ENUM", "BOOLEAN", "INT", "FLOAT", "STRING"}
+            }
+            inputs = [
+                (i.identifier, i.is_linked, _value(getattr(i, "default_value", None)))
+                for i in n.inputs
+            ]
+            sub = getattr(n, "node_tree", None)
+            nodes[n.name] = (
+                n.bl_idname,
+                settings,
+                n.parent.name if n.parent else None,
+                sub.name.replace(base, "<group>") if sub else None,
+                inputs,
+                dict(n.items()),  # our tags
+            )
+            if sub is not None:
+                pending.append(sub)
+        links = sorted(
+            (lk.from_node.name, lk.from_socket.identifier, lk.to_node.name, lk.to_socket.identifier)
+            for lk in tree.links
+        )
+        tags = {k: v for k, v in tree.items() if k != node_group.SOURCE_HASH}
+        out[key] = (items, nodes, links, tags)
+    return out
+
+
+def test_the_shipped_group_is_the_build_and_is_appended_without_one(monkeypatch, tmp_path):
+    """The extension ships the group (addon/data/node_group.blend, scripts/build_node_group.py
+    with 4.5): built from the current sources, so that a first use with an empty cache appends
+    it in a fraction of a second and builds nothing; and, read by this Blender, node for
+    node what build_group makes here from the description: every tree's interface, every
+    node's type, settings, frame, sub-group, input values and tags, every link. Mutation
+    check: a changed default in the description fails the digest, and a node changed in the
+    shipped file fails the comparison."""
+    assert node_group.shipped_digest() == node_group.source_digest(), (
+        "the shipped node group is stale: run .venv-bpy4.5/bin/python scripts/build_node_group.py"
+    )
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(node_group, "_store", lambda *a: None)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    build = node_group.build_group
+    monkeypatch.setattr(node_group, "build_group", lambda *a, **k: pytest.fail("built"))
+    shipped = node_group.ensure_group()
+    assert shipped.get(node_group.SOURCE_HASH) == node_group.source_digest()
+    assert shipped.get(node_group.TAG) and not shipped.use_fake_user
+    built = build("ctlab build check")
+    want, got = _describe(built), _describe(shipped)
+    assert list(want) == list(got)
+    for tree in want:
+        assert want[tree][0] == got[tree][0], (tree, "interface")
+        assert want[tree][1].keys() == got[tree][1].keys(), (tree, "nodes")
+        for name, node in want[tree][1].items():
+            assert node == got[tree][1][name], (tree, name)
+        assert want[tree][2] == got[tree][2], (tree, "links")
+        assert want[tree][3] == got[tree][3], (tree, "tags")
 
 
 def test_an_osl_node_leaves_nothing_in_tmpdir(monkeypatch, tmp_path):
