@@ -341,8 +341,19 @@ def evaluate_plot(
     settings: brdf_plot.PlotSettings, events: Events | None = None, verbose: bool = False
 ) -> dict:
     """The model of ``settings`` and of each variant (brdf_plot.PlotSettings.variants)
-    evaluated by the chosen implementation at every configuration of the plot, in a fresh
-    empty scene: {tag: brdf_plot.assemble(...)}, the variants' labels under "labels"."""
+    evaluated by the chosen implementation at every configuration of the plot:
+    {tag: brdf_plot.assemble(...)}, the variants' labels under "labels". Rendered once
+    (render_plot), then read from the cache (jobs/plot_cache.py) while the settings, the
+    code and Blender's version are the same."""
+    from . import plot_cache
+
+    return plot_cache.cached(settings, lambda: render_plot(settings, events, verbose))
+
+
+def render_plot(
+    settings: brdf_plot.PlotSettings, events: Events | None = None, verbose: bool = False
+) -> dict:
+    """evaluate_plot's results rendered, in a fresh empty scene."""
     from ..blender.model_eval import Evaluator
 
     events = events or Events()

@@ -479,3 +479,66 @@ def test_ctlab_plot_writes_every_file(tmp_path):
         np.isfinite(values).all() and values.shape[1] == 1 + 3 * 9
     )  # 3 variants x (specular, diffuse, total) x RGB
     assert not list(out.glob(".*partial*"))
+
+
+# ----------------------------------------------------------------------------------------
+# The plots' cache (jobs/plot_cache.py)
+
+
+def _same_results(a, b, where=""):
+    """The same nested keys in the same order, arrays equal exactly with their dtypes."""
+    assert list(a) == list(b), where
+    for k in a:
+        if isinstance(a[k], dict):
+            _same_results(a[k], b[k], f"{where}/{k}")
+        elif isinstance(a[k], str):
+            assert a[k] == b[k], (where, k)
+        else:
+            x, y = np.asarray(a[k]), np.asarray(b[k])
+            assert x.dtype == y.dtype and x.shape == y.shape, (where, k)
+            assert np.array_equal(x, y), (where, k)
+
+
+def test_a_plot_is_rendered_once_then_read_from_the_cache(tmp_path, monkeypatch):
+    """The second evaluation of the same plot renders nothing and gives the first's results
+    exactly (every array, dtype and label); a damaged entry is rendered again, never read;
+    the key changes with every setting and with the add-on's sources."""
+    from addon.jobs import plot_cache
+
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
+    rendered = []
+    render = pipeline.render_plot
+    monkeypatch.setattr(
+        pipeline, "render_plot", lambda *a, **k: rendered.append(a[0]) or render(*a, **k)
+    )
+    fields = dict(
+        metallic=1.0, smoothness=0.3, views=("D",), compare=(("g", "smith_ggx_correlated"),)
+    )
+    s = bp.PlotSettings(**fields)
+    first = pipeline.evaluate_plot(s)
+    assert len(rendered) == 1 and list(first) == ["", "g-smith_ggx_correlated", "labels"]
+    second = pipeline.evaluate_plot(s)
+    assert len(rendered) == 1
+    _same_results(first, second)
+    entry = tmp_path / "cache" / plot_cache.key(s) / plot_cache.RESULTS
+    entry.write_bytes(entry.read_bytes()[:-100])  # truncated: the manifest catches it
+    third = pipeline.evaluate_plot(s)
+    assert len(rendered) == 2
+    _same_results(first, third)
+    keys = {plot_cache.key(s)}
+    for change in (
+        dict(metallic=0.9),
+        dict(smoothness=0.31),
+        dict(albedo=(0.9, 0.9, 0.8)),
+        dict(g_model="unity_smith_joint"),
+        dict(diffuse_model="lambert"),
+        dict(units="unity"),
+        dict(energy="compensated"),
+        dict(shader="nodes"),
+        dict(views=("D", "F")),
+        dict(compare=()),
+    ):
+        keys.add(plot_cache.key(bp.PlotSettings(**dict(fields, **change))))
+    assert len(keys) == 11
+    monkeypatch.setattr(plot_cache, "_sources_digest", lambda: "another shader")
+    assert plot_cache.key(s) not in keys

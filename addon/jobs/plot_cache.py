@@ -1,0 +1,105 @@
+"""The BRDF plots' evaluations kept in the cache (core/cache.py), so that a job run again with
+the same switches, or several jobs of one session, render each plot once.
+
+A plot's results (brdf_plot.assemble: the slice, the lobes and the directional albedos of
+each variant, and the variants' labels) depend only on its PlotSettings, on the code that
+renders and assembles them (the OSL shader, the node group's description, the add-on's Python)
+and on Blender's version. The key is the SHA-256 of all of these, so that an edit of any of
+them, or another Blender, renders again; an entry holds the results as one ``.npz`` (the
+arrays, dtypes kept) with the labels, signed like every cache entry (a damaged one is rendered
+again, never used)."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import io
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from ..core import cache
+from ..core.files import NODE_GROUPS_DIR, OSL_DIR, PACKAGE_ROOT
+
+VERSION = 1
+RESULTS = "results.npz"
+SEPARATOR = "|"  # between the nested keys of an array's name in the .npz
+_ADDON = Path(__file__).resolve().parent.parent  # the add-on's Python package
+
+
+@functools.lru_cache(maxsize=1)
+def _sources_digest() -> str:
+    """SHA-256 of every file the plot's evaluation is made from: the add-on's Python, the
+    OSL shader with its headers, the node group's description."""
+    h = hashlib.sha256()
+    files = (
+        sorted(_ADDON.rglob("*.py"))
+        + sorted(OSL_DIR.glob("*"))
+        + sorted(NODE_GROUPS_DIR.glob("*.toml"))
+    )
+    for p in files:
+        if p.is_file() and "__pycache__" not in p.parts:
+            h.update(p.relative_to(PACKAGE_ROOT).as_posix().encode() + b"\0" + p.read_bytes())
+    return h.hexdigest()
+
+
+def key(settings) -> str:
+    """The cache key of a plot's results."""
+    what = json.dumps(
+        {"settings": asdict(settings), "blender": bpy.app.version_string},
+        sort_keys=True,
+        default=list,
+    )
+    digest = hashlib.sha256(what.encode() + _sources_digest().encode()).hexdigest()
+    return f"plot-v{VERSION}-{digest[:32]}"
+
+
+def save(results: dict, path: Path) -> None:
+    """The results (nested dicts of arrays, "labels" a dict of strings) as one .npz."""
+    arrays = {k: v for k, v in results.items() if k != "labels"}
+    flat = {}
+    for tag, tree in arrays.items():
+        for name, value in _leaves(tree):
+            flat[SEPARATOR.join((tag, *name))] = np.asarray(value)
+    flat["labels"] = np.frombuffer(json.dumps(results.get("labels", {})).encode(), np.uint8)
+    buf = io.BytesIO()
+    np.savez(buf, **flat)
+    Path(path).write_bytes(buf.getvalue())
+
+
+def _leaves(tree, name=()):
+    if isinstance(tree, dict):
+        for k, v in tree.items():
+            yield from _leaves(v, (*name, k))
+    else:
+        yield name, tree
+
+
+def load(path: Path) -> dict:
+    """The results that save() wrote."""
+    results: dict = {}
+    with np.load(path, allow_pickle=False) as data:
+        for full in data.files:
+            if full == "labels":
+                results["labels"] = json.loads(data[full].tobytes().decode())
+                continue
+            tag, *name = full.split(SEPARATOR)
+            node = results.setdefault(tag, {})
+            for k in name[:-1]:
+                node = node.setdefault(k, {})
+            node[name[-1]] = data[full]
+    return results
+
+
+def cached(settings, evaluate) -> dict:
+    """The plot's results from the cache, else ``evaluate()``'s, then kept there."""
+    k = key(settings)
+    hit = cache.lookup(k)
+    if hit is not None:
+        return load(hit / RESULTS)
+    results = evaluate()
+    cache.build(k, lambda stage: save(results, stage / RESULTS))
+    return results
