@@ -184,19 +184,50 @@ def test_an_osl_node_leaves_nothing_in_tmpdir(monkeypatch, tmp_path):
     """Cycles compiles a script node through temporary .osl/.oso files and leaves the .oso
     in TMPDIR, also when only the node's script is set (its update compiles it). Every
     compile of ours happens in a private folder, removed after: TMPDIR stays empty over a
-    conversion to OSL (three materials). Mutation check: setting the node's script before
-    entering the private folder (as before) left one .oso per material here."""
+    conversion to OSL (three materials). And the shader is compiled once: the later nodes get
+    the first's bytecode and sockets, the same as a compile gives. Mutation checks: setting
+    the node's script before entering the private folder (as before) left one .oso per
+    material here; without the compiled shader kept, three compiles."""
+    from cycles import osl as cycles_osl
+
+    from addon.blender import osl_shader
+
     tmp = tmp_path / "tmpdir"
     tmp.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    monkeypatch.setattr(osl_shader, "_COMPILED", {})  # as in a new process
+    compiles = []
+    compile_ = cycles_osl.osl_compile
+    monkeypatch.setattr(cycles_osl, "osl_compile", lambda *a: compiles.append(a) or compile_(*a))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.engine = 'CYCLES'  # the script node's update compiles with Cycles
+    nodes = []
     for name in ("A", "B", "C"):
         mat = _material(name)
         assert convert.principled_to_model(mat, scene, "osl") == []
         assert model_node.implementation(model_node.find(mat)) == "osl"
+        nodes.append(model_node.find(mat))
     assert sorted(p.name for p in tmp.iterdir()) == []
+    # compiled once: the later nodes get the first's bytecode and the same sockets
+    assert len(compiles) == 1 and scene.render.engine == 'CYCLES'
+
+    def sockets(node):
+        return [
+            (s.identifier, s.bl_idname, s.name, _value(getattr(s, "default_value", None)))
+            for s in (*node.inputs, *node.outputs)
+        ]
+
+    assert len({n.bytecode_hash for n in nodes}) == 1 and nodes[0].bytecode
+    assert sockets(nodes[0]) == sockets(nodes[1]) == sockets(nodes[2])
+    assert len(sockets(nodes[0])) > 100
+    # and before any value is set: a node compiled anew against one given the compiled shader
+    osl_shader._COMPILED.clear()
+    tree = _material("D").node_tree
+    compiled, given = (tree.nodes.new("ShaderNodeScript") for _ in range(2))
+    osl_shader.compile_script_node(compiled)
+    osl_shader.compile_script_node(given)
+    assert len(compiles) == 2 and sockets(compiled) == sockets(given)
 
 
 @pytest.mark.parametrize("impl", ["nodes", "osl"])
