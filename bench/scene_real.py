@@ -207,7 +207,10 @@ def _child(*args) -> dict:
     env = dict(os.environ)
     env.setdefault("CTLAB_CACHE", str(CACHE))
     start = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    # the child ends with os._exit (no atexit): its temporary folder, Blender's session folder
+    # in it, is one of ours, removed here
+    with tempfile.TemporaryDirectory(prefix="ctlab-bench-") as tmp:
+        p = subprocess.run(cmd, capture_output=True, text=True, env=dict(env, TMPDIR=tmp))
     if p.returncode != 0:
         raise SystemExit(f"bench: {' '.join(cmd)} failed:\n{(p.stderr or p.stdout)[-3000:]}")
     lines = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
