@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import io
 import json
 from dataclasses import asdict
 from pathlib import Path
@@ -27,7 +26,7 @@ from ..core.files import NODE_GROUPS_DIR, OSL_DIR, PACKAGE_ROOT
 VERSION = 1
 RESULTS = "results.npz"
 SEPARATOR = "|"  # between the nested keys of an array's name in the .npz
-_ADDON = Path(__file__).resolve().parent.parent  # the add-on's Python package
+_ADDON = PACKAGE_ROOT / "addon"  # the add-on's Python package
 
 
 @functools.lru_cache(maxsize=1)
@@ -65,9 +64,7 @@ def save(results: dict, path: Path) -> None:
         for name, value in _leaves(tree):
             flat[SEPARATOR.join((tag, *name))] = np.asarray(value)
     flat["labels"] = np.frombuffer(json.dumps(results.get("labels", {})).encode(), np.uint8)
-    buf = io.BytesIO()
-    np.savez(buf, **flat)
-    Path(path).write_bytes(buf.getvalue())
+    np.savez(Path(path), **flat)
 
 
 def _leaves(tree, name=()):
