@@ -1,8 +1,14 @@
 """The tables of the node group's scene-transport correction: integrals of the model alone
 (its G and diffuse against the closures Cycles offers), which the correction's lookups read.
-Pure numpy; integrated once per cache (about 3 s) and written as EXR files there."""
+Pure numpy. The extension ships them (addon/data/correction_tables.npz with
+correction_tables.json, their parameters; scripts/build_tables.py), so that no first use
+integrates them (7 s on two cores); a cache writes them as EXR files, integrated only where
+the shipped file is absent or made for other parameters."""
 
 from __future__ import annotations
+
+import json
+import zipfile
 
 import numpy as np
 
@@ -36,15 +42,17 @@ def kernel_mean_cosines() -> np.ndarray:
     return np.array(out)
 
 
-def correction_tables(g_model: str, size: int | None = None) -> dict:
-    """The tables above for one G: {kind: (size, size, 3) float32}."""
+def correction_tables(g_model: str, size: int | None = None, rows=None) -> dict:
+    """The tables above for one G: {kind: (size, size, 3) float32}. ``rows``: only those
+    rows j (one perceptual roughness each, integrated on its own), in that order."""
     from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis, ggx_half_vectors
     from ..core.model import ggx_alpha
 
     size = size or DFG_SIZE
     x = dfg_axis(size)
     nv = np.maximum(x, DFG_MIN_NDOTV)
-    tables = {kind: np.zeros((size, size, 3)) for kind in CORRECTION_TABLE_KINDS}
+    rows = range(size) if rows is None else list(rows)
+    tables = {kind: np.zeros((len(rows), size, 3)) for kind in CORRECTION_TABLE_KINDS}
     rbar = kernel_mean_cosines()
 
     def smith(nl, nv_, a):
@@ -59,11 +67,11 @@ def correction_tables(g_model: str, size: int | None = None) -> dict:
             )
         )
 
-    disney = disney_tables(size)
+    disney = disney_tables(size, rows)
     tables["residual"][..., 2] = (
         disney["disney_positive"][..., 0] + disney["disney_negative"][..., 0]
     )
-    for j, pr in enumerate(x):
+    for j, pr in enumerate(x[rows]):
         if g_model == "smith_ggx_correlated":
             continue
         a = ggx_alpha(pr)
@@ -103,10 +111,10 @@ def _lobe(total, cx, cz, rbar):
     return angle, np.interp(-np.minimum(mean_cos, 1.0), -rbar, np.arange(len(rbar), dtype=float))
 
 
-def disney_tables(size: int | None = None) -> dict:
+def disney_tables(size: int | None = None, rows=None) -> dict:
     """The tables of Disney's diffuse minus Lambert's above: {name: (size, size, 3)}, by a
     midpoint grid over cosine-distributed l (Malley's method; v in the xz plane, phi in
-    [0, pi] by symmetry), (l.h)^2 = (1 + l.v)/2."""
+    [0, pi] by symmetry), (l.h)^2 = (1 + l.v)/2. ``rows`` as in correction_tables."""
     from ..core.ibl_bake import DFG_MIN_NDOTV, dfg_axis
 
     size = size or DFG_SIZE
@@ -118,8 +126,9 @@ def disney_tables(size: int | None = None) -> dict:
     phi = ((np.arange(nphi) + 0.5) / nphi * np.pi)[None, None, :]
     lx, lz = np.sqrt(s) * np.cos(phi), np.sqrt(1.0 - s)
     lv = lx * np.sqrt(1.0 - nv * nv) + lz * nv  # v = (sin, 0, n.v)
-    tables = {name: np.zeros((size, size, 3)) for name in DISNEY_TABLES}
-    for j, pr in enumerate(x):
+    rows = range(size) if rows is None else list(rows)
+    tables = {name: np.zeros((len(rows), size, 3)) for name in DISNEY_TABLES}
+    for j, pr in enumerate(x[rows]):
         fd90_m1 = pr * (1.0 + lv) - 0.5
         d = (1 + fd90_m1 * (1 - lz) ** 5) * (1 + fd90_m1 * (1 - nv) ** 5) - 1.0
         for sign, name in ((1, "disney_positive"), (-1, "disney_negative")):
@@ -130,9 +139,59 @@ def disney_tables(size: int | None = None) -> dict:
     return {name: t.astype(np.float32) for name, t in tables.items()}
 
 
+def all_tables(rows=None) -> dict:
+    """Every table of CORRECTION_TABLES by name, integrated (``rows`` as in
+    correction_tables)."""
+    out = {}
+    for g in G_MODELS:
+        for kind, table in correction_tables(g, rows=rows).items():
+            out[f"{kind}_{g}"] = table
+    out.update(disney_tables(rows=rows))
+    return out
+
+
+SHIPPED = "correction_tables"  # addon/data/<SHIPPED>.npz and .json
+
+
+def table_signature() -> dict:
+    """What the tables depend on besides the model's formulas: a shipped file is used only
+    when this matches (a change of the formulas is caught by tests/render/test_ibl_bake.py,
+    which integrates rows again)."""
+    from ..core.ibl_bake import DFG_MIN_NDOTV, LEVEL_ROUGHNESS
+
+    return {
+        "version": CORRECTION_VERSION,
+        "size": DFG_SIZE,
+        "min_ndotv": DFG_MIN_NDOTV,
+        "samples": list(CORRECTION_SAMPLES),
+        "diffuse_samples": list(CORRECTION_DIFFUSE_SAMPLES),
+        "level_roughness": [float(r) for r in LEVEL_ROUGHNESS],
+        "tables": list(CORRECTION_TABLES),
+    }
+
+
+def shipped_tables() -> dict | None:
+    """The shipped tables by name, or None when absent, damaged, of another shape or made
+    for other parameters."""
+    from .files import DATA_DIR
+
+    try:
+        meta = json.loads((DATA_DIR / f"{SHIPPED}.json").read_text())
+        with np.load(DATA_DIR / f"{SHIPPED}.npz") as npz:
+            tables = {name: npz[name] for name in CORRECTION_TABLES}
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+        return None
+    if meta != table_signature():
+        return None
+    if any(t.shape != (DFG_SIZE, DFG_SIZE, 3) for t in tables.values()):
+        return None
+    return {name: t.astype(np.float32) for name, t in tables.items()}
+
+
 def correction_table_folder():
     """The folder of the tables above (<kind>_<G>.exr for every kind and G), in the cache:
-    they depend on the model alone, integrated once per cache (about 3 s)."""
+    they depend on the model alone, the shipped ones (shipped_tables) or, without them,
+    integrated once per cache (7 s)."""
     from ..core import cache
     from ..core.hdri import write_float_exr
 
@@ -143,10 +202,7 @@ def correction_table_folder():
     )
 
     def fill(stage):
-        for g in G_MODELS:
-            for kind, table in correction_tables(g).items():
-                write_float_exr(stage / f"{kind}_{g}.exr", table)
-        for name, table in disney_tables().items():
+        for name, table in (shipped_tables() or all_tables()).items():
             write_float_exr(stage / f"{name}.exr", table)
 
     return cache.cached(key, fill)

@@ -51,6 +51,7 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
     assert "LICENSE" in names and "addon/data/font_atlas.LICENSE.txt" in names
     assert "GNU GENERAL PUBLIC LICENSE" in (ROOT / "LICENSE").read_text()[:200]
     assert "addon/data/dominant_cook_torrance.npy" in names
+    assert "addon/data/correction_tables.npz" in names and "addon/data/node_group.blend" in names
     assert not any(n.startswith(("tests/", "scripts/", ".venv", ".ci")) for n in names)
 
     script = textwrap.dedent(f"""

@@ -349,6 +349,33 @@ def test_the_shipped_tables_are_what_integrating_them_gives(tmp_path, monkeypatc
     )
 
 
+@pytest.mark.one_series  # numpy's integration, the same on every Blender series
+def test_the_shipped_correction_tables_are_what_integrating_them_gives(tmp_path, monkeypatch):
+    """The node group's correction tables (addon/core/correction_tables.py) ship too
+    (addon/data/correction_tables.npz, scripts/build_tables.py): a first node group in an
+    empty cache would otherwise integrate them for 7 s. They must equal a fresh integration
+    of today's model and parameters: every row is integrated on its own and a change of the
+    model moves every row, so a fifth of the rows (and the first and last) is integrated
+    again; and an empty cache must write the shipped tables without integrating."""
+    from addon.core import correction_tables as ct
+
+    shipped = ct.shipped_tables()
+    assert shipped is not None, "addon/data lacks correction tables for today's parameters"
+    assert set(shipped) == set(ct.CORRECTION_TABLES)
+    rows = sorted({0, ibl_bake.DFG_SIZE - 1, *range(2, ibl_bake.DFG_SIZE, 5)})
+    for name, table in ct.all_tables(rows=rows).items():
+        np.testing.assert_allclose(shipped[name][rows], table, rtol=1e-6, atol=1e-7, err_msg=name)
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "empty-cache"))
+
+    def no_integration(*args, **kw):
+        raise AssertionError("the cache integrated a table the extension ships")
+
+    monkeypatch.setattr(ct, "all_tables", no_integration)
+    folder = ct.correction_table_folder()
+    for name in ("lobes_cook_torrance", "disney_negative"):
+        np.testing.assert_array_equal(read_image(folder / f"{name}.exr"), shipped[name])
+
+
 @pytest.mark.parametrize("g_model", ["cook_torrance", "smith_ggx_correlated"])
 def test_the_dominant_direction_is_the_lobes_centroid(g_model):
     """The corrected split-sum's t (channel 2 of ms_<G>): normalize(mix(n, r, t)) must point
