@@ -16,8 +16,9 @@ pytestmark = pytest.mark.one_series
 
 # Values chosen to hit every check: hostile numbers (negative, huge, non-finite, float32
 # overflow), malformed lists, odd tokens. A command line is either valid (it renders a 16- or
-# 24-px image with one sample) or valid but for one hostile token, so that both outcomes are
-# met often (the last test checks that).
+# 24-px image with one sample) or, two times in three, valid but for one hostile token (the
+# renders are the time; the hostile tokens the point), so that both outcomes are met often
+# (the last test checks that: 15 renders and 25 refusals of 40, derandomized).
 VALID = {
     "--shader": ["osl", "nodes", "principled"],
     "--grid": ["1x1", "2x1", "1X2"],
@@ -67,7 +68,7 @@ OUTCOMES = []
 def command_lines(draw):
     flags = list(REQUIRED) + draw(st.lists(st.sampled_from(OPTIONAL), max_size=3, unique=True))
     values = [draw(st.sampled_from(VALID[f])) for f in flags]
-    if draw(st.booleans()):  # one hostile token
+    if draw(st.integers(0, 2)):  # one hostile token, two times in three
         k = draw(st.integers(0, len(flags) - 1))
         values[k] = draw(st.sampled_from(HOSTILE))
     argv = ["render", "--samples", "1"]
@@ -83,7 +84,7 @@ def _listing(root: Path) -> set:
 
 
 @settings(
-    max_examples=60,
+    max_examples=40,
     deadline=None,
     derandomize=True,
     database=None,
