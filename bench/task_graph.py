@@ -13,6 +13,8 @@ from bench.common import CTLAB
 # session): the same 13 render tasks and merge, fewer pixels and samples.
 GRAPH_SCENE = {"grid": "7x7", "size": 256, "samples": 16}
 GRAPH_QUICK = {"grid": "2x2", "size": 48, "samples": 4}
+# The main job's own setting (README), once with one worker: each task's overhead there.
+GRAPH_MAIN = {"grid": "7x7", "size": 512, "samples": 64}
 GRAPH_WORKERS = (1, 2, 4)
 FARM_WORKERS = 100
 
@@ -103,8 +105,17 @@ def bench_graph(quick: bool, work: Path) -> dict:
     total = sum(walls)
     over = [t["overhead_fraction"] for t in one["tasks"]]
     farm = round(max(max(walls), total / FARM_WORKERS) + one["merge_seconds"], 1)
+    main = None
+    if not quick:  # the same tasks at the main job's own setting, one worker
+        main = _graph_run(work / "graph-main", GRAPH_MAIN, 1)
+        print(f"graph at the main job's setting: {main['makespan_seconds']} s", flush=True)
+        main_over = [t["overhead_fraction"] for t in main["tasks"]]
+        main["overhead_fraction_mean"] = round(sum(main_over) / len(main_over), 3)
+        main["overhead_fraction_max"] = round(max(main_over), 3)
+        main["scene"] = GRAPH_MAIN
     return {
         "scene": scene,
+        "main_setting": main,
         "runs": runs,
         "farm_workers": FARM_WORKERS,
         "farm_projection_seconds": farm,
@@ -142,13 +153,7 @@ def graph_table(section: dict) -> list:
         "| task | wall (s) | process start | build + save | sync | render | overhead |",
         "|---|---|---|---|---|---|---|",
     ]
-    for t in section["runs"][0]["tasks"]:
-        lines.append(
-            f"| {t['task']} | {t['wall_seconds']:.2f} | "
-            f"{t['process_start_seconds']:.2f} | {t['build_and_save_seconds']:.2f} | "
-            f"{t['sync_seconds']:.2f} | {t['cycles_render_seconds'] or 0:.2f} | "
-            f"{100 * t['overhead_fraction']:.0f}% |"
-        )
+    lines += _task_rows(section["runs"][0]["tasks"])
     lines += [
         "",
         f"Overhead fraction of a task: mean "
@@ -159,4 +164,33 @@ def graph_table(section: dict) -> list:
         f"longest task, then the merge; total task time "
         f"{section['total_task_seconds']} s): **{section['farm_projection_seconds']} s**.",
     ]
+    main = section.get("main_setting")
+    if main:
+        sc = main["scene"]
+        lines += [
+            "",
+            f"The same tasks at the main job's own setting (grid {sc['grid']}, {sc['size']} "
+            f"px, {sc['samples']} samples), one worker: makespan {main['makespan_seconds']:.1f} s "
+            f"(merge {main['merge_seconds']:.1f} s).",
+            "",
+            "| task | wall (s) | process start | build + save | sync | render | overhead |",
+            "|---|---|---|---|---|---|---|",
+            *_task_rows(main["tasks"]),
+            "",
+            f"Overhead fraction of a task at the main job's setting: mean "
+            f"**{100 * main['overhead_fraction_mean']:.0f}%**, max "
+            f"{100 * main['overhead_fraction_max']:.0f}% (process start, scene build and "
+            "saving, and Cycles' synchronisation, which a single process pays for each "
+            "render too).",
+        ]
     return lines
+
+
+def _task_rows(tasks: list) -> list:
+    return [
+        f"| {t['task']} | {t['wall_seconds']:.2f} | "
+        f"{t['process_start_seconds']:.2f} | {t['build_and_save_seconds']:.2f} | "
+        f"{t['sync_seconds']:.2f} | {t['cycles_render_seconds'] or 0:.2f} | "
+        f"{100 * t['overhead_fraction']:.0f}% |"
+        for t in tasks
+    ]
