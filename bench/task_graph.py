@@ -109,6 +109,10 @@ def bench_graph(quick: bool, work: Path) -> dict:
     if not quick:  # the same tasks at the main job's own setting, one worker
         main = _graph_run(work / "graph-main", GRAPH_MAIN, 1)
         print(f"graph at the main job's setting: {main['makespan_seconds']} s", flush=True)
+        main["single_process_seconds"] = _single_process(work / "single-main", GRAPH_MAIN)
+        main["graph_over_single"] = round(
+            main["makespan_seconds"] / main["single_process_seconds"], 3
+        )
         main_over = [t["overhead_fraction"] for t in main["tasks"]]
         main["overhead_fraction_mean"] = round(sum(main_over) / len(main_over), 3)
         main["overhead_fraction_max"] = round(max(main_over), 3)
@@ -124,6 +128,18 @@ def bench_graph(quick: bool, work: Path) -> dict:
         "overhead_fraction_mean": round(sum(over) / len(over), 3),
         "overhead_fraction_max": round(max(over), 3),
     }
+
+
+def _single_process(out: Path, scene: dict) -> float:
+    """`ctlab matrix` as one process at ``scene``: its wall time (plan to report)."""
+    opts = ["--grid", scene["grid"], "--size", str(scene["size"]), "--samples"]
+    start = time.perf_counter()
+    subprocess.run(
+        [sys.executable, str(CTLAB), "matrix", *opts, str(scene["samples"]), "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    return round(time.perf_counter() - start, 1)
 
 
 def _forest() -> Path:
@@ -171,7 +187,9 @@ def graph_table(section: dict) -> list:
             "",
             f"The same tasks at the main job's own setting (grid {sc['grid']}, {sc['size']} "
             f"px, {sc['samples']} samples), one worker: makespan {main['makespan_seconds']:.1f} s "
-            f"(merge {main['merge_seconds']:.1f} s).",
+            f"(merge {main['merge_seconds']:.1f} s), against {main['single_process_seconds']:.1f}"
+            f" s for `ctlab matrix` as one process at that setting in the same run: the task "
+            f"graph costs **{100 * (main['graph_over_single'] - 1):.0f}%** more.",
             "",
             "| task | wall (s) | process start | build + save | sync | render | overhead |",
             "|---|---|---|---|---|---|---|",
@@ -181,9 +199,15 @@ def graph_table(section: dict) -> list:
             f"**{100 * main['overhead_fraction_mean']:.0f}%**, max "
             f"{100 * main['overhead_fraction_max']:.0f}% (process start, scene build and "
             "saving, and Cycles' synchronisation, which a single process pays for each "
-            "render too).",
+            "render too; the graph's own part, process start and exit, "
+            f"{100 * _own_fraction(main['tasks']):.0f}% of the tasks' time).",
         ]
     return lines
+
+
+def _own_fraction(tasks: list) -> float:
+    own = sum(t["process_start_seconds"] + t["exit_seconds"] for t in tasks)
+    return own / sum(t["wall_seconds"] for t in tasks)
 
 
 def _task_rows(tasks: list) -> list:
