@@ -152,8 +152,11 @@ def _child_build(path: str) -> None:
     bpy.ops.wm.save_as_mainfile(filepath=path, compress=False)
 
 
-def _child_render(blend: str, side: str, config: str, out: str, size: int, samples: int) -> None:
-    """One render: Principled or every material converted; prints its timings as JSON."""
+def _child_render(
+    blend: str, side: str, config: str, out: str, size: int, samples: int, after_convert=None
+) -> None:
+    """One render: Principled or every material converted (then ``after_convert(info)``, if
+    given: bench/scene_cost.py's variants); prints its timings as JSON."""
     import bpy
 
     from addon.blender import comparison_render, convert, model_node, node_group, renderer
@@ -179,6 +182,8 @@ def _child_render(blend: str, side: str, config: str, out: str, size: int, sampl
         info["energy"] = sorted({model_node.get_option(model_node.find(m), "energy") for m in mats})
         group = bpy.data.node_groups.get(node_group.load_description()["group"]["name"])
         info["group_nodes"] = None if group is None else _count_nodes(group)
+        if after_convert is not None:
+            after_convert(info)
     job = SceneJob(blend=Path(blend), out=Path(out), size=size, samples=samples)
     comparison_render.configure(
         scene, scene.camera, job.size, job.samples, job.seed, osl, job.notes
@@ -202,8 +207,9 @@ def _count_nodes(tree, seen=None) -> int:
 # --- The driver -------------------------------------------------------------------------
 
 
-def _child(*args) -> dict:
-    cmd = [sys.executable, __file__, "--child", *map(str, args)]
+def _child(*args, script: str = __file__) -> dict:
+    """One child process (``script --child ARGS``): its RESULT line, with its wall time."""
+    cmd = [sys.executable, script, "--child", *map(str, args)]
     env = dict(os.environ)
     env.setdefault("CTLAB_CACHE", str(CACHE))
     start = time.perf_counter()

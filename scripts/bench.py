@@ -10,8 +10,9 @@ process's wall time is reported beside it.
     .venv-bpy<series>/bin/python scripts/bench.py [--quick] [--only SECTION ...]
 
 Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only``
-re-runs the named sections (render, error, main, bake, scene, graph, and scene-real: every
-material of a product shot converted) and keeps the others from results.json. Each section
+re-runs the named sections (render, error, main, bake, scene, graph, scene-real: every
+material of a product shot converted, and scene-cost: what each part of the converted group
+costs there) and keeps the others from results.json. Each section
 is a module of bench/ (bench/__init__.py); this script is the entry point: the options, which
 sections run, and the results written.
 Converged images for the error study are cached in out/bench-cache (keyed by Blender's
@@ -37,6 +38,7 @@ from bench import (  # noqa: E402
     equal_error,
     main_job,
     render_time,
+    scene_cost,
     scene_real,
     scene_transport,
     task_graph,
@@ -65,6 +67,11 @@ SECTIONS = {
         "Every material of a product shot converted",
         scene_real.bench_scene_real,
         scene_real.scene_real_table,
+    ),
+    "scene-cost": (
+        "Where the converted product shot's time goes",
+        scene_cost.bench_scene_cost,
+        scene_cost.scene_cost_table,
     ),
 }
 
