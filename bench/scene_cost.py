@@ -152,16 +152,7 @@ def scene_cost_table(section: dict) -> list:
 
 def main() -> None:
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        import os
-
-        import bpy
-
-        bpy.utils.expose_bundled_modules()
-        blend, side, config, out, size, samples, variant = sys.argv[3:10]
-        after = apply_variant(variant) if side == "converted" else None
-        scene_real._child_render(blend, side, config, out, int(size), int(samples), after)
-        sys.stdout.flush()
-        os._exit(0)  # bpy as a module can hang at exit (tests/conftest.py)
+        scene_real.child_main(apply_variant)
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -293,18 +293,26 @@ def scene_real_table(section: dict) -> list:
     return lines
 
 
+def child_main(after_convert=None) -> None:
+    """A child process: ``--child build PATH`` or ``--child render BLEND SIDE CONFIG OUT SIZE
+    SAMPLES [EXTRA ...]``; a converted render runs ``after_convert(*EXTRA)`` (a function of the
+    render's info, or None) after its conversion (bench/scene_cost.py's variants)."""
+    import bpy
+
+    bpy.utils.expose_bundled_modules()
+    if sys.argv[2] == "build":
+        _child_build(sys.argv[3])
+    else:
+        blend, side, config, out, size, samples = sys.argv[3:9]
+        hook = after_convert(*sys.argv[9:]) if after_convert and side == "converted" else None
+        _child_render(blend, side, config, out, int(size), int(samples), hook)
+    sys.stdout.flush()
+    os._exit(0)  # bpy as a module can hang at exit (tests/conftest.py)
+
+
 def main() -> None:
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        import bpy
-
-        bpy.utils.expose_bundled_modules()
-        if sys.argv[2] == "build":
-            _child_build(sys.argv[3])
-        else:
-            blend, side, config, out, size, samples = sys.argv[3:9]
-            _child_render(blend, side, config, out, int(size), int(samples))
-        sys.stdout.flush()
-        os._exit(0)  # bpy as a module can hang at exit (tests/conftest.py)
+        child_main()
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
