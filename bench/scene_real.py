@@ -156,7 +156,8 @@ def _child_render(
     blend: str, side: str, config: str, out: str, size: int, samples: int, after_convert=None
 ) -> None:
     """One render: Principled or every material converted (then ``after_convert(info)``, if
-    given: bench/scene_cost.py's variants); prints its timings as JSON."""
+    given: bench/scene_cost.py's variants, bench/scene_samples.py's samples and seed);
+    prints its timings as JSON."""
     import bpy
 
     from addon.blender import comparison_render, convert, model_node, node_group, renderer
@@ -184,7 +185,8 @@ def _child_render(
         info["group_nodes"] = None if group is None else _count_nodes(group)
         if after_convert is not None:
             after_convert(info)
-    job = SceneJob(blend=Path(blend), out=Path(out), size=size, samples=samples)
+    seed = info.get("seed", 0)  # a hook may ask for another seed (bench/scene_samples.py)
+    job = SceneJob(blend=Path(blend), out=Path(out), size=size, samples=samples, seed=seed)
     comparison_render.configure(
         scene, scene.camera, job.size, job.samples, job.seed, osl, job.notes
     )

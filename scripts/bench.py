@@ -11,10 +11,10 @@ process's wall time is reported beside it.
 
 Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only``
 re-runs the named sections (render, error, main, bake, scene, graph, scene-real: every
-material of a product shot converted, and scene-cost: what each part of the converted group
-costs there) and keeps the others from results.json. Each section
-is a module of bench/ (bench/__init__.py); this script is the entry point: the options, which
-sections run, and the results written.
+material of a product shot converted, scene-cost: what each part of the converted group
+costs there, and scene-samples: the OSL correction's samples at equal error) and keeps the
+others from results.json. Each section is a module of bench/ (bench/__init__.py); this script
+is the entry point: the options, which sections run, and the results written.
 Converged images for the error study are cached in out/bench-cache (keyed by Blender's
 version, the renderer, the scene and the model's sources).
 """
@@ -40,6 +40,7 @@ from bench import (  # noqa: E402
     render_time,
     scene_cost,
     scene_real,
+    scene_samples,
     scene_transport,
     task_graph,
 )
@@ -72,6 +73,11 @@ SECTIONS = {
         "Where the converted product shot's time goes",
         scene_cost.bench_scene_cost,
         scene_cost.scene_cost_table,
+    ),
+    "scene-samples": (
+        "The OSL correction's samples per shading point, at equal error",
+        scene_samples.bench_scene_samples,
+        scene_samples.scene_samples_table,
     ),
 }
 

@@ -210,7 +210,10 @@ def set_defaults(node: bpy.types.Node, context: str, **options) -> None:
     (core.model.rules.resolve: the context's light transport, the implementation's indirect
     light). Raises UserError where the rules refuse the options."""
     for key, value in resolve(implementation(node), options, context).items():
-        set_option(node, key, value)
+        if key == "env_samples":  # a number, not a switch (the OSL shader's only)
+            _input(node, key).default_value = int(value)
+        else:
+            set_option(node, key, value)
 
 
 def set_options(node: bpy.types.Node, options: ModelOptions) -> None:

@@ -220,6 +220,7 @@ def real_scene(request, tmp_path_factory):
                     diffuse_model="lambert",
                     env_visibility=True,
                     shadow_rays=True,
+                    env_samples=4,  # the same estimator in both transports (their defaults differ)
                 ),
             )
 

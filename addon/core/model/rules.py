@@ -9,6 +9,8 @@
 - The indirect light an implementation renders (``indirect_light``): the node group has the
   baked modes only and takes the split-sum for the reference.
 - The samples per pixel a render may ask for (``MAX_SAMPLES``).
+- The reference integrator's samples per shading point per light transport
+  (``DEFAULT_ENV_SAMPLES``).
 
 The UI's EnumProperty defaults, the command line, the scene job and conversion read these;
 tests/unit/test_model_rules.py checks that no caller writes its own.
@@ -38,6 +40,13 @@ CONTEXTS = (LAB, ARTIST)
 DEFAULT_TRANSPORT = {LAB: LIGHT_TRANSPORTS[0], ARTIST: LIGHT_TRANSPORTS[1]}
 # Samples per pixel: Cycles' own limit, the UI's and the command line's.
 MAX_SAMPLES = 65536
+# The OSL shader's samples per shading point (each of BRDF and environment sampling) where
+# nothing asks for others, per light transport. In the lab they estimate the whole indirect
+# light: 4 reach Principled's error soonest (docs/testing.md, "Equal error"). In the scene
+# transport they estimate only the correction inside Cycles' path tracing, whose own samples
+# carry the noise: 1 gives the same error as 4 in about half the render time
+# (docs/testing.md, "Every material of a product shot converted").
+DEFAULT_ENV_SAMPLES = {LIGHT_TRANSPORTS[0]: 4, LIGHT_TRANSPORTS[1]: 1}
 SCENE_UNITS_PROBLEM = (
     "Unity's units (x pi on direct light) exist in the lab transport only; use "
     "--units physical with --light-transport scene, or the lab transport"
@@ -48,14 +57,17 @@ def resolve(implementation: str, options: dict | None = None, context: str = LAB
     """The options a model node of ``implementation`` gets for ``options`` (key -> value;
     missing or None: the rule's): the light transport of ``context`` (``DEFAULT_TRANSPORT``),
     the indirect light the implementation renders (``indirect_light``: split-sum on the node
-    group), and Unity's units refused in the scene transport (UserError). Options not given
-    stay unset (a caller keeps what a node has)."""
+    group), the OSL shader's samples per shading point for that transport
+    (``DEFAULT_ENV_SAMPLES``), and Unity's units refused in the scene transport (UserError).
+    Options not given stay unset (a caller keeps what a node has)."""
     if context not in CONTEXTS:
         raise ValueError(f"unknown context {context!r}")
     out = {k: v for k, v in (options or {}).items() if v is not None}
     out.setdefault("light_transport", DEFAULT_TRANSPORT[context])
     if implementation in IMPLEMENTATIONS:
         out["ibl"] = indirect_light(implementation, out.get("ibl"))
+    if implementation == "osl":
+        out.setdefault("env_samples", default_env_samples(out["light_transport"]))
     problem = scene_transport_problem(out.get("units", UNITS[0]), out["light_transport"])
     if problem:
         raise UserError(problem)
@@ -74,7 +86,7 @@ class ModelOptions:
         units=UNITS[0],
         energy=ENERGY_MODES[0],
         ibl=IBL_MODES[0],
-        env_samples=4,
+        env_samples=None,
         env_visibility=False,
         sun_shadow=True,
         shadow_rays=True,
@@ -87,6 +99,8 @@ class ModelOptions:
         self.units = units
         self.energy = energy
         self.ibl = ibl
+        if env_samples is None:  # the transport's (an unknown transport: validate says so)
+            env_samples = default_env_samples(light_transport)
         self.env_samples = int(env_samples)
         self.env_visibility = bool(env_visibility)
         self.sun_shadow = bool(sun_shadow)
@@ -127,6 +141,12 @@ def scene_transport_problem(units: str, light_transport: str) -> str | None:
     if light_transport == "scene" and units != UNITS[0]:
         return SCENE_UNITS_PROBLEM
     return None
+
+
+def default_env_samples(light_transport: str) -> int:
+    """The OSL shader's samples per shading point for ``light_transport`` where nothing asks
+    for others (``DEFAULT_ENV_SAMPLES``; the lab's for a transport it does not know)."""
+    return DEFAULT_ENV_SAMPLES.get(light_transport, DEFAULT_ENV_SAMPLES[LIGHT_TRANSPORTS[0]])
 
 
 def indirect_light(impl: str, ibl: str | None = None) -> str:

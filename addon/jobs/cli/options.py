@@ -194,9 +194,10 @@ LIGHT_TRANSPORT = _switch(
 ENV_SAMPLES = Option(
     "--env-samples",
     "environment samples per shading point and render sample (each of BRDF and "
-    "environment sampling)",
+    "environment sampling; default: "
+    + ", ".join(f"{n} with the {t} transport" for t, n in model.DEFAULT_ENV_SAMPLES.items())
+    + ")",
     int,
-    4,
 )
 ENV_VISIBILITY = Option(
     "--env-visibility", "trace environment samples for occlusion by other objects", bool

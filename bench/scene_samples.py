@@ -1,0 +1,137 @@
+"""The OSL shader's samples per shading point in the scene transport, at equal error: does the
+correction need 4 BRDF + 4 environment samples (the lab's default), or does Cycles' own path
+tracing carry the noise?
+
+    .venv-bpy<series>/bin/python bench/scene_samples.py [--quick]
+
+(also ``scripts/bench.py --only scene-samples``). bench/scene_real.py's product shot, every
+material converted to the OSL shader (its "osl default": Cook-Torrance G, Disney diffuse,
+energy compensated), rendered with each ``Env Samples`` in SAMPLES at the scene's samples per
+pixel, and once converged (CONVERGED_SAMPLES, 4 + 4, another seed) as the reference they all
+estimate (the correction is unbiased at any count). Per count: Cycles' render time, over
+Principled's; the RMSE against the reference (radiance clamped at 4, so a firefly does not
+decide it); and MSE x time (the cost of a given error) over that of 4. Each render a fresh
+process. The rule it informs: core/model/rules.py DEFAULT_ENV_SAMPLES.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from bench import scene_real  # noqa: E402
+
+CONFIG = "osl default"
+SAMPLES = (1, 2, 4)
+CONVERGED_SAMPLES, QUICK_CONVERGED = 1024, 32
+REFERENCE_SEED = 7
+CLAMP = 4.0
+
+
+def with_samples(count: str, seed: str = "0"):
+    """The hook run after the conversion (``after_convert``): every model node's Env Samples,
+    and the render's seed."""
+
+    def apply(info: dict) -> None:
+        import bpy
+
+        from addon.blender import model_node
+
+        for mat in bpy.data.materials:
+            node = model_node.find(mat)
+            if node is not None:
+                node.inputs["Env Samples"].default_value = int(count)
+        info["env_samples"], info["seed"] = int(count), int(seed)
+
+    return apply
+
+
+def _image(folder: Path):
+    import numpy as np
+
+    from addon.core.compare import read_image
+
+    return np.minimum(read_image(folder / "render.exr").astype(np.float64), CLAMP)
+
+
+def bench_scene_samples(quick: bool, work: Path) -> dict:
+    """The reference, Principled and each count once; the section's data."""
+    import numpy as np
+
+    import addon.blender  # noqa: F401  (exposes Blender's bundled OpenImageIO)
+
+    scene = scene_real.QUICK if quick else scene_real.SCENE
+    blend = work / "product_shot_samples.blend"
+    scene_real._child("build", blend)
+    size, spp = scene["size"], scene["samples"]
+    converged = QUICK_CONVERGED if quick else CONVERGED_SAMPLES
+    ref_dir = work / "samples-reference"
+    args = ("render", blend, "converted", CONFIG, ref_dir, size, converged, 4, REFERENCE_SEED)
+    scene_real._child(*args, script=__file__)
+    reference = _image(ref_dir)
+    folder = work / "samples-principled"
+    principled = scene_real._child("render", blend, "principled", CONFIG, folder, size, spp)
+    base = principled["cycles_render_seconds"]
+    rows = {}
+    for count in SAMPLES:
+        folder = work / f"samples-{count}"
+        args = ("render", blend, "converted", CONFIG, folder, size, spp, count)
+        r = scene_real._child(*args, script=__file__)
+        mse = float(np.mean((_image(folder) - reference) ** 2))
+        rows[count] = {"render_seconds": r["cycles_render_seconds"], "mse": mse}
+        print(f"scene-samples: {count}: {r['cycles_render_seconds']:.2f} s, mse {mse:.5f}")
+    cost4 = rows[4]["mse"] * rows[4]["render_seconds"]
+    for row in rows.values():
+        row["ratio"] = round(row["render_seconds"] / base, 3)
+        row["rmse"] = round(row["mse"] ** 0.5, 5)
+        row["cost_for_equal_error"] = round(row["mse"] * row["render_seconds"] / cost4, 3)
+    return {
+        "scene": dict(scene, converged=converged, config=CONFIG),
+        "principled_seconds": base,
+        "rows": {str(k): v for k, v in rows.items()},
+    }
+
+
+def scene_samples_table(section: dict) -> list:
+    sc = section["scene"]
+    lines = [
+        f"bench/scene_real.py's product shot, {sc['size']} px wide, {sc['samples']} samples, "
+        f"every material converted to the OSL shader (scene transport, default settings), with "
+        f"each Env Samples (BRDF + environment samples per shading point of the correction); "
+        f"reference: the same at {sc['converged']} samples with 4, another seed. Principled "
+        f"renders it in {section['principled_seconds']:.2f} s. Cost for equal error = MSE x "
+        f"render time over that of 4 (radiance clamped at {CLAMP:g}).",
+        "",
+        "| Env Samples | render s | / Principled | RMSE | cost for equal error |",
+        "|---|---|---|---|---|",
+    ]
+    for count, row in section["rows"].items():
+        lines.append(
+            f"| {count} | {row['render_seconds']:.2f} | **{row['ratio']:.2f}x** | "
+            f"{row['rmse']:.4f} | {row['cost_for_equal_error']:.2f} |"
+        )
+    return lines
+
+
+def main() -> None:
+    if len(sys.argv) > 2 and sys.argv[1] == "--child":
+        scene_real.child_main(with_samples)
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="tiny renders (a smoke run)")
+    ap.add_argument("--json", type=Path, help="also write the section here")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        section = bench_scene_samples(args.quick, Path(tmp))
+    if args.json:
+        args.json.write_text(json.dumps(section, indent=2))
+    print("\n".join(scene_samples_table(section)))
+
+
+if __name__ == "__main__":
+    main()
