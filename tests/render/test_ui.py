@@ -334,6 +334,9 @@ def test_conversion_round_trip_and_undo(addon):
     bpy.ops.ctlab.convert_to_cook_torrance(implementation="osl")
     node = model_node.find(bpy.data.materials["User Paint"])
     assert model_node.implementation(node) == "osl"
+    # an artist's material: the scene transport, its correction 1 + 1 samples per shading point
+    assert model_node.get_option(node, "light_transport") == "scene"
+    assert node.inputs["Env Samples"].default_value == 1
     assert abs(model_node.surface_input(node, "smoothness").default_value - 0.7) < 1e-6
     bpy.ops.ctlab.convert_to_principled()
     bsdf = convert.surface_principled(bpy.data.materials["User Paint"])
@@ -347,9 +350,10 @@ def test_switch_implementation_and_view_on_all(addon):
     _sun(scene)
     cube = bpy.data.objects["Cube"]
     bpy.context.view_layer.objects.active = cube
-    bpy.ops.ctlab.new_material(implementation="osl")
+    bpy.ops.ctlab.new_material(implementation="osl", light_transport="lab")
     mat = cube.active_material
     node = model_node.find(mat)
+    assert node.inputs["Env Samples"].default_value == 4  # the lab's reference integration
     img = bpy.data.images.new("albedo", 4, 4)
     tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
     tex.image = img
