@@ -19,6 +19,7 @@ import shutil
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
 
 from ..core.files import live_temporaries
@@ -44,14 +45,25 @@ def _cancel() -> None:
     if session is not None and session.name.startswith("blender_"):
         shutil.rmtree(session, ignore_errors=True)
     for path in live_temporaries():
-        path = Path(path)
-        if path.is_dir():
+        _remove(Path(path))
+    os.write(_stderr, MESSAGE.encode())
+    os._exit(130)
+
+
+def _remove(path: Path, tries: int = 40) -> None:
+    """Remove a temporary that the main thread, which runs on meanwhile, may still be
+    writing: again until it is gone. A file it adds to a folder between rmtree's listing and
+    its rmdir (the OSL compile's output) leaves the folder standing; once the folder is gone,
+    no new file can appear in it."""
+    for _ in range(tries):
+        if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path, ignore_errors=True)
         else:
             with contextlib.suppress(OSError):
                 path.unlink()
-    os.write(_stderr, MESSAGE.encode())
-    os._exit(130)
+        if not os.path.lexists(path):
+            return
+        time.sleep(0.005)
 
 
 def _watch() -> None:

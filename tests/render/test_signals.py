@@ -5,6 +5,7 @@ folder are registered temporaries, jobs/signals.py); the main job keeps its fini
 Checked on real processes."""
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -217,3 +218,27 @@ def test_pixel_grid_and_compile_folders_are_registered_temporaries():
     for module in (osl_shader, pixel_grid):
         source = inspect.getsource(module)
         assert "temporary_folder(" in source and "mkdtemp" not in source, module
+
+
+def test_a_file_written_while_the_cancel_removes_its_folder_goes_too(tmp_path, monkeypatch):
+    """The watcher removes a temporary folder while the main thread runs on: a file the
+    main thread adds between rmtree's listing and its rmdir (the OSL compile's output, seen
+    once in CI) left the folder standing. The removal now tries again until it is gone."""
+    from addon.jobs import signals
+
+    folder = tmp_path / "ctlab-osl-x"
+    folder.mkdir()
+    (folder / "shader.osl").write_text("source")
+    real, calls = shutil.rmtree, []
+
+    def racing(path, ignore_errors=False):
+        calls.append(path)
+        if len(calls) == 1:  # the listing's files go, then the main thread writes one
+            (Path(path) / "shader.osl").unlink()
+            (Path(path) / "compiled.oso").write_text("bytecode")
+            return  # rmdir failed, and ignore_errors kept it quiet
+        return real(path, ignore_errors=ignore_errors)
+
+    monkeypatch.setattr(signals.shutil, "rmtree", racing)
+    signals._remove(folder)
+    assert not folder.exists() and len(calls) == 2
