@@ -15,10 +15,8 @@ times over the median of Principled's.
 
 from __future__ import annotations
 
-import json
 import statistics
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -162,20 +160,13 @@ def scene_cost_table(section: dict) -> list:
 
 
 def main() -> None:
-    if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        scene_real.child_main(apply_variant)
-    import argparse
-
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="tiny renders (a smoke run)")
-    ap.add_argument("--pairs", type=int, default=2)
-    ap.add_argument("--json", type=Path, help="also write the section here")
-    args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        section = bench_scene_cost(args.quick, Path(tmp), args.pairs)
-    if args.json:
-        args.json.write_text(json.dumps(section, indent=2))
-    print("\n".join(scene_cost_table(section)))
+    scene_real.standalone(
+        __doc__,
+        bench_scene_cost,
+        scene_cost_table,
+        apply_variant,
+        options=(("--pairs", {"type": int, "default": 2}),),
+    )
 
 
 if __name__ == "__main__":

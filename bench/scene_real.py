@@ -312,22 +312,39 @@ def child_main(after_convert=None) -> None:
     os._exit(0)  # bpy as a module can hang at exit (tests/conftest.py)
 
 
-def main() -> None:
+def standalone(doc: str, bench, table, after_convert=None, options=()) -> None:
+    """A section run on its own (this module, scene_cost, scene_samples): a child process
+    with ``--child``; else ``--quick``, ``--json`` and ``options`` ((flag, argparse keywords),
+    passed to ``bench`` by their dest), the section in a temporary folder, its table
+    printed."""
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        child_main()
+        child_main(after_convert)
     import argparse
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="tiny renders (a smoke run)")
-    ap.add_argument("--pairs", type=int, default=2)
-    ap.add_argument("--config", nargs="+", choices=list(CONFIGS))
     ap.add_argument("--json", type=Path, help="also write the section here")
-    args = ap.parse_args()
+    for flag, keywords in options:
+        ap.add_argument(flag, **keywords)
+    args = vars(ap.parse_args())
+    quick, out = args.pop("quick"), args.pop("json")
     with tempfile.TemporaryDirectory() as tmp:
-        section = bench_scene_real(args.quick, Path(tmp), args.pairs, args.config)
-    if args.json:
-        args.json.write_text(json.dumps(section, indent=2))
-    print("\n".join(scene_real_table(section)))
+        section = bench(quick, Path(tmp), **args)
+    if out:
+        out.write_text(json.dumps(section, indent=2))
+    print("\n".join(table(section)))
+
+
+def main() -> None:
+    standalone(
+        __doc__,
+        bench_scene_real,
+        scene_real_table,
+        options=(
+            ("--pairs", {"type": int, "default": 2}),
+            ("--config", {"nargs": "+", "choices": list(CONFIGS), "dest": "configs"}),
+        ),
+    )
 
 
 if __name__ == "__main__":

@@ -16,9 +16,7 @@ process. The rule it informs: core/model/rules.py DEFAULT_ENV_SAMPLES.
 
 from __future__ import annotations
 
-import json
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -118,19 +116,7 @@ def scene_samples_table(section: dict) -> list:
 
 
 def main() -> None:
-    if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        scene_real.child_main(with_samples)
-    import argparse
-
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="tiny renders (a smoke run)")
-    ap.add_argument("--json", type=Path, help="also write the section here")
-    args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        section = bench_scene_samples(args.quick, Path(tmp))
-    if args.json:
-        args.json.write_text(json.dumps(section, indent=2))
-    print("\n".join(scene_samples_table(section)))
+    scene_real.standalone(__doc__, bench_scene_samples, scene_samples_table, with_samples)
 
 
 if __name__ == "__main__":
