@@ -27,8 +27,6 @@ CONFIG = "nodes default"
 # name -> what the variant takes out (the table's words)
 VARIANTS = {
     "converted": "nothing: the converted scene as an artist renders it",
-    "every chain each time": "the random choice of one pre-filtered chain per shading "
-    "point (node_compiler.pick_one): all five evaluated, each at weight 1",
     "no world correction": "the correction group's Correction output (the world's "
     "split-sum emission): what is left is the closures and the per-light corrections",
     "no pre-filtered chains": "the five pre-filtered chains (Emission behind Mix Shader "
@@ -68,15 +66,6 @@ def apply_variant(variant: str):
         holder = next(n for n in main.nodes if getattr(n, "node_tree", None) == correction)
         if variant == "no world correction":
             _unlink(main, holder.outputs["Correction"])
-        elif variant == "every chain each time":
-            for node in correction.nodes:
-                if node.bl_idname == "ShaderNodeMixShader" and node.label.endswith(": chosen"):
-                    _unlink(correction, node.inputs["Fac"])
-                    node.inputs["Fac"].default_value = 1.0
-                elif getattr(node, "node_tree", None) == chains:
-                    scale = node.inputs["Colour"].links[0].from_node  # the colour times M
-                    assert scale.operation == "SCALE" and not scale.inputs["Scale"].is_linked
-                    scale.inputs["Scale"].default_value = 1.0
         elif variant == "no pre-filtered chains":
             out = next(n for n in chains.nodes if n.bl_idname == "NodeGroupOutput")
             _unlink(chains, out.inputs[0])

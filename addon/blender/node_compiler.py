@@ -381,18 +381,6 @@ class Compiler:
         return self.lookup(key, self.table_directions[u, v])
 
 
-def pick_one(b: Compiler, count: int):
-    """An index in 0 .. count - 1, uniformly at random per shading point: floor(count u), u a
-    White Noise Texture of the shading point's position. Cycles jitters each sample's ray
-    within the pixel filter (1.5 px by default) and every bounce is random, so each sample
-    draws anew; with a filter of width near zero a pixel keeps one draw."""
-    position = b.socket("geo.Position")
-    noise = b.new("ShaderNodeTexWhiteNoise", noise_dimensions="3D")
-    b.link(position, noise.inputs["Vector"])
-    u = b.call("math.MULTIPLY", [noise.outputs["Value"], float(count)])
-    return b.call("math.MINIMUM", [b.call("math.FLOOR", [u]), float(count - 1)])
-
-
 def closures(b: Compiler, views: dict, view_on: list, rest, frame: str = "views"):
     """The Emission output: the view's colour without its closure terms, plus each term as
     an Emission closure behind Mix Shader nodes, whose zero-weight branches Cycles skips with
@@ -406,11 +394,6 @@ def closures(b: Compiler, views: dict, view_on: list, rest, frame: str = "views"
       M_6 = L_6 c, M_k = mix(L_k c, M_k+1, clamp(x - k, 0, 1)). For x in [j, j + 1] this is
       (1 - f) L_j c + f L_j+1 c, the same sum, and Cycles reads two levels, not seven.
 
-    In the correction group (``b.chain_group`` set) its M prefiltered() terms are chosen
-    from at random, one per shading point (``pick_one``): each is an instance of the chain
-    group behind a Mix Shader of weight (pick == j), its colour times M. The expectation is
-    the sum; Cycles evaluates one chain (two lookups) instead of M.
-
     The closure terms are those the last emission-mode pass met (b.closure_terms), which
     this consumes."""
     b.current_frame = frame
@@ -422,8 +405,6 @@ def closures(b: Compiler, views: dict, view_on: list, rest, frame: str = "views"
 
     total = emit(rest)
     terms, b.closure_terms = b.closure_terms, {}
-    chains = [name for name, (op, _) in terms.items() if op != "gated"]
-    pick = pick_one(b, len(chains)) if b.chain_group is not None and len(chains) > 1 else None
     for name, (op, args) in terms.items():
         weight = None
         for k, (view, tree) in enumerate(views.items()):
@@ -447,15 +428,9 @@ def closures(b: Compiler, views: dict, view_on: list, rest, frame: str = "views"
             node = b.new("ShaderNodeGroup")
             node.node_tree = b.chain_group
             node.label = name
-            colour = weighted(factor, weight)
-            if pick is not None:  # chosen with probability 1/M: its colour times M
-                colour = b.call("vec.SCALE", [colour, float(len(chains))])
-            for sock, value in zip(CHAIN_INPUTS, (x, direction, colour)):
+            for sock, value in zip(CHAIN_INPUTS, (x, direction, weighted(factor, weight))):
                 b.link(value, node.inputs[sock[0]])
             closure = node.outputs[0]
-            if pick is not None:
-                chosen = b.call("math.COMPARE", [pick, float(chains.index(name)), 0.5])
-                closure = mix(chosen, None, closure, f"{name}: chosen")
         else:
             x, direction, factor = args
             closure = chain(b, x, direction, weighted(factor, weight), name, emit, mix)

@@ -534,11 +534,7 @@ WORLD_SAMPLES, WORLD_SIZE, WORLD_GRID = 1024, 40, (3, 2)
 BOUND_DE = 0.5
 # Where the split-sum estimate of the world's correction is not accurate enough for 0.5, per
 # sphere (metallic, smoothness). Measured at these settings (5.2.3, 40 px; at 48 px on 5.2.3
-# and 4.5 every figure was within 0.06 of these), before the correction's chains were chosen
-# from at random (node_compiler.pick_one; after it, on 5.2.3: 0.57, 0.53, 0.73, 0.62 for the
-# four Cook-Torrance figures below, 0.47 for Disney's mirror, 0.45 for Unity's metal, and
-# 0.45 for the rough dielectrics with Disney's diffuse, the selection's noise at 1024
-# samples; everything else 0.13-0.39): the Cook-Torrance G on the metal spheres,
+# and 4.5 every figure was within 0.06 of these): the Cook-Torrance G on the metal spheres,
 # whose lobe differs most from Smith's (up to half as much again at grazing views of rough
 # surfaces): 0.58 (none) and 0.53 (compensated) at smoothness 0.5, 0.68 and 0.60 at
 # smoothness 0; the split-sum of the correction leaves a few % where the sky's warm lobe is
