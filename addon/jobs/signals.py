@@ -43,7 +43,7 @@ def _cancel() -> None:
     bpy = sys.modules.get("bpy")
     session = Path(bpy.app.tempdir) if bpy is not None and bpy.app.tempdir else None
     if session is not None and session.name.startswith("blender_"):
-        shutil.rmtree(session, ignore_errors=True)
+        _remove(session)  # Blender's threads may still write into it, as ours may
     for path in live_temporaries():
         _remove(Path(path))
     os.write(_stderr, MESSAGE.encode())
