@@ -1,17 +1,21 @@
 """The OSL shader's samples per shading point in the scene transport, at equal error: does the
 correction need 4 BRDF + 4 environment samples (the lab's default), or does Cycles' own path
-tracing carry the noise?
+tracing carry the noise? And its two estimators: every technique of the world and of every
+light per sample (the lab's), or one technique per sample (the one-sample model, the scene
+transport's default: osl/ct_correction.h)?
 
     .venv-bpy<series>/bin/python bench/scene_samples.py [--quick]
 
 (also ``scripts/bench.py --only scene-samples``). bench/scene_real.py's product shot, every
 material converted to the OSL shader (its "osl default": Cook-Torrance G, Disney diffuse,
-energy compensated), rendered with each ``Env Samples`` in SAMPLES at the scene's samples per
-pixel, and once converged (CONVERGED_SAMPLES, 4 + 4, another seed) as the reference they all
-estimate (the correction is unbiased at any count). Per count: Cycles' render time, over
-Principled's; the RMSE against the reference (radiance clamped at 4, so a firefly does not
-decide it); and MSE x time (the cost of a given error) over that of 4. Each render a fresh
-process. The rule it informs: core/model/rules.py DEFAULT_ENV_SAMPLES.
+energy compensated), rendered with each estimator and ``Env Samples`` in ROWS at the scene's
+samples per pixel, and once converged (CONVERGED_SAMPLES, every technique, 4 + 4, another
+seed) as the reference they all estimate (the correction is unbiased with either estimator at
+any count). Per row: Cycles' render time, over Principled's; the RMSE against the reference
+(radiance clamped at 4, so a firefly does not decide it); MSE x time (the cost of a given
+error) over that of the lab's 4 + 4; and the pixels below zero (the signed correction's
+noise can make a sum negative). Each render a fresh process. The rules it informs:
+core/model/rules.py DEFAULT_ENV_SAMPLES and the shader's One-Sample Correction.
 """
 
 from __future__ import annotations
@@ -24,15 +28,22 @@ sys.path.insert(0, str(ROOT))
 from bench import scene_real  # noqa: E402
 
 CONFIG = "osl default"
-SAMPLES = (1, 2, 4)
+# (estimator, One-Sample Correction, Env Samples); the first is the cost's unit
+ROWS = (
+    ("every technique", 0, 4),
+    ("every technique", 0, 1),
+    ("one technique", 1, 1),
+    ("one technique", 1, 2),
+    ("one technique", 1, 4),
+)
 CONVERGED_SAMPLES, QUICK_CONVERGED = 1024, 32
 REFERENCE_SEED = 7
 CLAMP = 4.0
 
 
-def with_samples(count: str, seed: str = "0"):
-    """The hook run after the conversion (``after_convert``): every model node's Env Samples,
-    and the render's seed."""
+def with_samples(count: str, seed: str = "0", one_sample: str = "0"):
+    """The hook run after the conversion (``after_convert``): every model node's Env Samples
+    and One-Sample Correction, and the render's seed."""
 
     def apply(info: dict) -> None:
         import bpy
@@ -43,6 +54,7 @@ def with_samples(count: str, seed: str = "0"):
             node = model_node.find(mat)
             if node is not None:
                 node.inputs["Env Samples"].default_value = int(count)
+                node.inputs["One-Sample Correction"].default_value = int(one_sample)
         info["env_samples"], info["seed"] = int(count), int(seed)
 
     return apply
@@ -61,6 +73,7 @@ def bench_scene_samples(quick: bool, work: Path) -> dict:
     import numpy as np
 
     import addon.blender  # noqa: F401  (exposes Blender's bundled OpenImageIO)
+    from addon.core.compare import read_image
 
     scene = scene_real.QUICK if quick else scene_real.SCENE
     blend = work / "product_shot_samples.blend"
@@ -75,14 +88,25 @@ def bench_scene_samples(quick: bool, work: Path) -> dict:
     principled = scene_real._child("render", blend, "principled", CONFIG, folder, size, spp)
     base = principled["cycles_render_seconds"]
     rows = {}
-    for count in SAMPLES:
-        folder = work / f"samples-{count}"
-        args = ("render", blend, "converted", CONFIG, folder, size, spp, count)
+    for estimator, one_sample, count in ROWS:
+        folder = work / f"samples-{one_sample}-{count}"
+        args = ("render", blend, "converted", CONFIG, folder, size, spp, count, 0, one_sample)
         r = scene_real._child(*args, script=__file__)
+        image = np.asarray(read_image(folder / "render.exr"), dtype=np.float64)
         mse = float(np.mean((_image(folder) - reference) ** 2))
-        rows[count] = {"render_seconds": r["cycles_render_seconds"], "mse": mse}
-        print(f"scene-samples: {count}: {r['cycles_render_seconds']:.2f} s, mse {mse:.5f}")
-    cost4 = rows[4]["mse"] * rows[4]["render_seconds"]
+        negative = int((image[..., :3] < 0).any(axis=-1).sum())
+        rows[f"{estimator}, {count}"] = {
+            "render_seconds": r["cycles_render_seconds"],
+            "mse": mse,
+            "negative_pixels": negative,
+        }
+        print(
+            f"scene-samples: {estimator}, {count}: {r['cycles_render_seconds']:.2f} s, "
+            f"mse {mse:.5f}, {negative} negative pixels",
+            flush=True,
+        )
+    unit = rows[f"{ROWS[0][0]}, {ROWS[0][2]}"]
+    cost4 = unit["mse"] * unit["render_seconds"]
     for row in rows.values():
         row["ratio"] = round(row["render_seconds"] / base, 3)
         row["rmse"] = round(row["mse"] ** 0.5, 5)
@@ -99,18 +123,22 @@ def scene_samples_table(section: dict) -> list:
     lines = [
         f"bench/scene_real.py's product shot, {sc['size']} px wide, {sc['samples']} samples, "
         f"every material converted to the OSL shader (scene transport, default settings), with "
-        f"each Env Samples (BRDF + environment samples per shading point of the correction); "
-        f"reference: the same at {sc['converged']} samples with 4, another seed. Principled "
-        f"renders it in {section['principled_seconds']:.2f} s. Cost for equal error = MSE x "
-        f"render time over that of 4 (radiance clamped at {CLAMP:g}).",
+        f"the correction's estimator (every technique of the world and each light per sample, "
+        f"or one technique per sample) and its Env Samples; reference: every technique, 4, at "
+        f"{sc['converged']} samples, another seed. Principled renders it in "
+        f"{section['principled_seconds']:.2f} s. Cost for equal error = MSE x render time over "
+        f"that of the first row (radiance clamped at {CLAMP:g}); negative: pixels with a "
+        f"channel below 0.",
         "",
-        "| Env Samples | render s | / Principled | RMSE | cost for equal error |",
-        "|---|---|---|---|---|",
+        "| estimator, Env Samples | render s | / Principled | RMSE | cost for equal error "
+        "| negative |",
+        "|---|---|---|---|---|---|",
     ]
-    for count, row in section["rows"].items():
+    for name, row in section["rows"].items():
         lines.append(
-            f"| {count} | {row['render_seconds']:.2f} | **{row['ratio']:.2f}x** | "
-            f"{row['rmse']:.4f} | {row['cost_for_equal_error']:.2f} |"
+            f"| {name} | {row['render_seconds']:.2f} | **{row['ratio']:.2f}x** | "
+            f"{row['rmse']:.4f} | {row['cost_for_equal_error']:.2f} | "
+            f"{row.get('negative_pixels', '–')} |"
         )
     return lines
 

@@ -51,6 +51,50 @@ float brdf_pdf(vector n, vector v, vector l, float a, float p_spec)
     return p_spec * pdf_spec + (1.0 - p_spec) * NdotL / M_PI;
 }
 
+// Smith's masking for GGX toward v: G1 = 2 (n.v) / ((n.v) + sqrt(a^2 + (1 - a^2)(n.v)^2))
+// (Walter et al. 2007, eq. 34).
+float G1_SmithGGX(float NdotV, float a)
+{
+    float a2 = a * a;
+    return 2.0 * NdotV / max(NdotV + sqrt(a2 + (1.0 - a2) * NdotV * NdotV), 1e-20);
+}
+
+// A light direction from GGX's visible normals (Heitz 2018, "Sampling the GGX Distribution
+// of Visible Normals", JCGT 7(4), listing 1): h drawn with density G1(v) max(0, v.h) D(h) /
+// (n.v) in the stretched frame where the lobe is a hemisphere, then l = reflect(-v, h). Its
+// density in l is that over 4 (v.h): G1(v) D(h) / (4 (n.v)) (ggx_visible_pdf). Unlike D (n.h)
+// sampling it wastes no draws below the surface at grazing views, and f (n.l) / pdf stays
+// bounded there. For n.v > 0. The scene transport's correction draws with it
+// (ct_correction.h); the lab's reference integrator draws with sample_brdf.
+vector sample_ggx_visible(vector n, vector v, float a, float u1, float u2)
+{
+    vector t, b;
+    make_frame(n, t, b);
+    vector Vh = normalize(vector(a * dot(v, t), a * dot(v, b), dot(v, n)));
+    float lensq = Vh[0] * Vh[0] + Vh[1] * Vh[1];
+    vector T1 = (lensq > 0.0) ? vector(-Vh[1], Vh[0], 0.0) / sqrt(lensq) : vector(1, 0, 0);
+    vector T2 = cross(Vh, T1);
+    float r = sqrt(u1), phi = M_2PI * u2;
+    float t1 = r * cos(phi), t2 = r * sin(phi);
+    float s = 0.5 * (1.0 + Vh[2]);
+    t2 = (1.0 - s) * sqrt(max(0.0, 1.0 - t1 * t1)) + s * t2;
+    vector Nh = t1 * T1 + t2 * T2 + sqrt(max(0.0, 1.0 - t1 * t1 - t2 * t2)) * Vh;
+    vector h = normalize(vector(a * Nh[0], a * Nh[1], max(0.0, Nh[2])));
+    return reflect(-v, normalize(h[0] * t + h[1] * b + h[2] * n));
+}
+
+// The density of sample_ggx_visible in solid angle: G1(v) D(h) / (4 (n.v)), 0 below the
+// surface.
+float ggx_visible_pdf(vector n, vector v, vector l, float a)
+{
+    if (dot(n, l) <= 0.0)
+        return 0.0;
+    Geometry g = geometry_of(n, v, l);
+    if (g.NdotV <= 0.0 || g.VdotH <= 0.0)
+        return 0.0;
+    return G1_SmithGGX(g.NdotV, a) * D_GGX(g.NdotH, a) / (4.0 * g.NdotV);
+}
+
 // ---------------------------------------------------------------------------------------
 
 

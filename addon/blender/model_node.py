@@ -216,12 +216,17 @@ def set_defaults(node: bpy.types.Node, context: str, **options) -> None:
             set_option(node, key, value)
 
 
+# The OSL shader's settings of its integration, which ModelOptions carries (the node group has
+# none: it integrates nothing per shading point)
+OSL_SETTINGS = ("env_samples", "env_visibility", "one_sample", "sun_shadow", "shadow_rays", "seed")
+
+
 def set_options(node: bpy.types.Node, options: ModelOptions) -> None:
     """The view, the switches and (OSL) the reference integrator's settings."""
     for key in OPTION_KEYS:
         set_option(node, key, getattr(options, key))
     if implementation(node) == "osl":
-        for key in ("env_samples", "env_visibility", "sun_shadow", "shadow_rays", "seed"):
+        for key in OSL_SETTINGS:
             _input(node, key).default_value = getattr(options, key)
 
 

@@ -370,6 +370,16 @@ OSL_ONLY = (
         osl="env_visibility",
     ),
     Input(
+        "one_sample",
+        "One-Sample Correction",
+        "INT",
+        1,
+        "The scene transport's correction takes one technique per Env Sample, the world's or "
+        "one light's, chosen at random (0: every technique of the world and of each light, as "
+        "the lab integrates)",
+        osl="one_sample",
+    ),
+    Input(
         "shadow_rays",
         "Shadow Rays",
         "INT",

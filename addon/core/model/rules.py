@@ -88,6 +88,7 @@ class ModelOptions:
         ibl=IBL_MODES[0],
         env_samples=None,
         env_visibility=False,
+        one_sample=True,
         sun_shadow=True,
         shadow_rays=True,
         seed=0,
@@ -103,6 +104,7 @@ class ModelOptions:
             env_samples = default_env_samples(light_transport)
         self.env_samples = int(env_samples)
         self.env_visibility = bool(env_visibility)
+        self.one_sample = bool(one_sample)
         self.sun_shadow = bool(sun_shadow)
         self.shadow_rays = bool(shadow_rays)
         self.seed = int(seed)
