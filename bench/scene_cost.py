@@ -37,6 +37,12 @@ VARIANTS = {
     "(a Light Path gate)",
     "no per-light groups": "the key Sun's and the eight light slots' groups (the per-light "
     "correction and the lab's direct light)",
+    "no residual pass": "the materials' AOV Output of the Residual Albedo (the render pass "
+    "residual_albedo) and what computes it",
+    "energy none": "the conversion's compensated energy (set to none after it: another model, "
+    "without the multiple-scattering tables the correction's quantities read)",
+    "closures alone": "the correction's Emission and the residual pass: the Metallic and "
+    "Diffuse BSDFs and what feeds them",
 }
 
 
@@ -62,6 +68,8 @@ def apply_variant(variant: str):
     """The function run after the conversion in a render's process (``after_convert``)."""
 
     def apply(info: dict) -> None:
+        import bpy
+
         main, correction, chains = _groups()
         holder = next(n for n in main.nodes if getattr(n, "node_tree", None) == correction)
         if variant == "no world correction":
@@ -95,6 +103,28 @@ def apply_variant(variant: str):
                 if tree is not None and tree.name.endswith(" Light"):
                     for socket in node.outputs:
                         _unlink(main, socket)
+        elif variant == "energy none":
+            from addon.blender import model_node
+
+            for mat in bpy.data.materials:
+                node = model_node.find(mat)
+                if node is not None:
+                    model_node.set_option(node, "energy", "none")
+        elif variant in ("no residual pass", "closures alone"):
+            for mat in bpy.data.materials:
+                if mat.node_tree is None:
+                    continue
+                for node in [
+                    n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"
+                ]:
+                    mat.node_tree.nodes.remove(node)
+            if variant == "closures alone":
+                _unlink(main, holder.outputs["Correction"])
+                for node in main.nodes:
+                    tree = getattr(node, "node_tree", None)
+                    if tree is not None and tree.name.endswith(" Light"):
+                        for socket in node.outputs:
+                            _unlink(main, socket)
         elif variant != "converted":
             raise SystemExit(f"bench: no variant {variant!r}")
         info["variant"] = variant
