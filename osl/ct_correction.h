@@ -52,9 +52,10 @@ color world_correction_sample(Surface sf, point P, EnvMap env, int rays, float u
 }
 
 // One sample of integral (f_model - f_closure) L_light (n.l) dl for one light slot: a point
-// on the light or a direction from GGX's visible normals, each with probability 1/2 (a point or spot light of no
-// size: its one direction), weighed as above by c_light p_light + c_brdf p_brdf (ct_lights.h
-// for the light's density and radiance).
+// on the light or a direction from GGX's visible normals, each with probability 1/2 (a light
+// of no size, a point, a spot or a Sun of angle 0: its one direction), weighed as above by
+// c_light p_light + c_brdf p_brdf (ct_lights.h for the light's density and radiance); its
+// shadow ray, up to the light, where the slot casts shadows.
 color light_correction_sample(Surface sf, point P, Light lt, int rays, float u[5])
 {
     int delta = is_delta(lt);

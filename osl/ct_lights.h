@@ -94,6 +94,15 @@ Incoming arriving(Light lt, point P, vector dir, float dist, float cos_l, float 
     return in;
 }
 
+// 1 - cos(x) = 2 sin^2(x / 2): a cone's solid angle over 2 pi, without the cancellation of
+// 1 - cos(x) in float (a Sun of 0.0005 rad would otherwise get a density off by 90%, and one
+// under 0.0004 rad none at all).
+float cone_1mcos(float x)
+{
+    float s = sin(0.5 * x);
+    return 2.0 * s * s;
+}
+
 // Chooses a direction toward the light for P (u1, u2 uniform in [0, 1)).
 Incoming sample_light(Light lt, point P, float u1, float u2)
 {
@@ -107,14 +116,16 @@ Incoming sample_light(Light lt, point P, float u1, float u2)
             in.Li = lt.power;
             return in;
         }
-        // uniform in the cone: density 1 / (2 pi (1 - cos(half_angle)))
-        float cos_max = cos(half_angle);
-        float c = 1.0 - u1 * (1.0 - cos_max);
-        float s = sqrt(max(0.0, 1.0 - c * c));
+        // uniform in the cone: density 1 / (2 pi (1 - cos(half_angle))), 1 - cos(x) written
+        // 2 sin^2(x / 2) (cone_1mcos), and sin from 1 - c: exact in float for small Suns
+        float omc = cone_1mcos(half_angle);
+        float one_minus_c = u1 * omc;
+        float c = 1.0 - one_minus_c;
+        float s = sqrt(max(0.0, one_minus_c * (2.0 - one_minus_c)));
         vector t, b;
         make_frame(axis, t, b);
         in.dir = normalize(s * cos(M_2PI * u2) * t + s * sin(M_2PI * u2) * b + c * axis);
-        in.pdf = 1.0 / (M_2PI * (1.0 - cos_max));
+        in.pdf = 1.0 / (M_2PI * omc);
         in.Li = lt.power / (M_PI * pow(sin(half_angle), 2));
         return in;
     }
@@ -163,9 +174,12 @@ Incoming light_along(Light lt, point P, vector dir)
     in.dir = dir; in.dist = FAR_AWAY; in.Li = color(0); in.pdf = 0.0;
     if (lt.type == LIGHT_SUN) {
         float half_angle = 0.5 * lt.size;
-        float cos_max = cos(half_angle);
-        if (!is_delta(lt) && dot(dir, -normalize(lt.direction)) >= cos_max) {
-            in.pdf = 1.0 / (M_2PI * (1.0 - cos_max));
+        vector axis = -normalize(lt.direction);
+        // inside the cone: the sine of the angle to the axis (|dir x axis|, exact in float for
+        // small angles, where 1 - dot is not) within sin(half_angle), on the axis' side
+        if (!is_delta(lt) && dot(dir, axis) > 0.0 &&
+            length(cross(dir, axis)) <= sin(half_angle)) {
+            in.pdf = 1.0 / (M_2PI * cone_1mcos(half_angle));
             in.Li = lt.power / (M_PI * pow(sin(half_angle), 2));
         }
         return in;

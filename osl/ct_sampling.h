@@ -62,10 +62,13 @@ float G1_SmithGGX(float NdotV, float a)
 // A light direction from GGX's visible normals (Heitz 2018, "Sampling the GGX Distribution
 // of Visible Normals", JCGT 7(4), listing 1): h drawn with density G1(v) max(0, v.h) D(h) /
 // (n.v) in the stretched frame where the lobe is a hemisphere, then l = reflect(-v, h). Its
-// density in l is that over 4 (v.h): G1(v) D(h) / (4 (n.v)) (ggx_visible_pdf). Unlike D (n.h)
-// sampling it wastes no draws below the surface at grazing views, and f (n.l) / pdf stays
-// bounded there. For n.v > 0. The scene transport's correction draws with it
-// (ct_correction.h); the lab's reference integrator draws with sample_brdf.
+// density in l is that over 4 (v.h): G1(v) D(h) / (4 (n.v)) (ggx_visible_pdf). It draws only
+// normals the viewer sees (v.h > 0), so at grazing views fewer draws fall below the surface
+// than with D (n.h) sampling (at alpha 0.5 and 70 degrees still about 13%), and the weight
+// f_s (n.l) / pdf = F G2 / G1 of a Smith lobe stays within [0, 1]; a difference of two G, as
+// the scene transport's correction integrates, still grows like 1 / (n.v) there, but no
+// faster. For n.v > 0. The scene transport's correction draws with it (ct_correction.h); the
+// lab's reference integrator draws with sample_brdf.
 vector sample_ggx_visible(vector n, vector v, float a, float u1, float u2)
 {
     vector t, b;

@@ -72,8 +72,10 @@ def _lambert_sphere(kind):
             spot_size=0.5,
             spot_blend=0.6,
         )
-    else:
-        light = dict(type="SUN", energy=2.0, rotation_euler=[0.7, 0.0, 0.4], angle=0.0)
+    else:  # SUN, or SUN_SMALL: a Sun of 0.0005 rad, a disc smaller than the Sun's (OSL
+        # samples its cone; 1 - cos of its half angle is 3e-8, under float's rounding of 1)
+        angle = 0.0005 if kind == "SUN_SMALL" else 0.0
+        light = dict(type="SUN", energy=2.0, rotation_euler=[0.7, 0.0, 0.4], angle=angle)
     return _lights(light)
 
 
@@ -97,11 +99,14 @@ def _expected_direct(light, points, normals):
     return E * np.clip(cos, 0, None)
 
 
-@pytest.mark.parametrize("kind", ["POINT", "SPOT", "SUN"])
+@pytest.mark.parametrize("kind", ["POINT", "SPOT", "SUN", "SUN_SMALL"])
 def test_a_lambertian_sphere_under_a_delta_light_is_the_closed_form(kind, tmp_path):
     """Per pixel, both implementations: direct diffuse = 0.96 albedo/pi E (n.l). A light in
     the wrong units, a missing 1/(4 pi), the spot's cone or the wrong direction fails by far
-    more than the bounds (the mesh's facets cost about 1e-3)."""
+    more than the bounds (the mesh's facets cost about 1e-3). SUN_SMALL, a Sun of 0.0005 rad
+    that the OSL shader samples as a cone, is the delta Sun's closed form to within 1e-7: a
+    cone's density from 1 - cos(half angle) in float32 (91% too low there, and infinite, so
+    no light at all, under 0.0004 rad) fails it (ct_lights.h cone_1mcos)."""
     lights = _lambert_sphere(kind)
     for shader in ("osl", "nodes"):
         img, scene = render(

@@ -425,3 +425,62 @@ def test_the_correction_is_exact_for_the_lights_with_shadow_rays(tmp_path, soft_
         render_transport(matrix, tmp_path / "scene", "scene", **model),
         BOUND_DE_NOISY,
     )
+
+
+def test_the_one_sample_correction_weighs_every_light(tmp_path, soft_sky):
+    """The scene transport's correction by one technique per sample (osl/ct_correction.h)
+    under docs/lights/mixed.json (8 slots: every light type and Area shape, a Sun with an
+    angle) and the world: per sphere pixel, the Cook-Torrance render minus the Smith render
+    (the same seed, so the same closures: the correction alone) against the lab's estimate
+    of the same difference (every technique; the lab's Cook-Torrance render minus its Smith
+    render, the same draws in both), the mean over the sphere within 4 standard errors in
+    every channel. The bound has teeth: a light's draw weighed by 1 / (1 - q) instead of
+    n / (1 - q) (the 8 lights counted as one) reads 26 standard errors off. The world's part
+    is small under this sky; test_scene_residual.py's one-technique test holds its weight (a
+    world draw not divided by q fails there)."""
+    from helpers import ROOT
+    from addon.core.lights import read_lights
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    s = MatrixSettings(
+        rows=1,
+        cols=1,
+        width=64,
+        height=64,
+        hdri=soft_sky,
+        hdri_strength=0.3,
+        mutual_shadows=True,
+        metallic=1.0,  # smoothness 0.5 (one row)
+        model=ModelOptions(light_transport="scene"),
+        lights=tuple(read_lights(ROOT / "docs" / "lights" / "mixed.json")),
+    )
+    scene = bpy.context.scene
+    scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
+    node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
+    matrix = (s, scene, node)
+    images = {}
+    for transport in ("scene", "lab"):
+        for g_model in ("cook_torrance", "smith_ggx_correlated"):
+            out = render_transport(
+                matrix,
+                tmp_path / f"{transport}-{g_model}",
+                transport,
+                samples=16,
+                g_model=g_model,
+                diffuse_model="disney",
+                energy="none",
+                env_samples=4,
+            )
+            images[transport, g_model] = compare.load_render(out)[0][..., :3]
+    cell = describe(s, s.hdri)["cells"][0]
+    mask = compare.cell_mask(images["lab", "cook_torrance"].shape, cell, 0.9)
+    one = (images["scene", "cook_torrance"] - images["scene", "smith_ggx_correlated"])[mask]
+    lab = (images["lab", "cook_torrance"] - images["lab", "smith_ggx_correlated"])[mask]
+    d = one - lab
+    stderr = d.std(axis=0) / np.sqrt(len(d))
+    print(
+        f"one-sample correction {one.mean(axis=0)}, lab's {lab.mean(axis=0)}, difference "
+        f"{d.mean(axis=0)}, stderr {stderr}, {len(d)} px"
+    )
+    assert (np.abs(lab.mean(axis=0)) > 20 * stderr).all(), "the correction is not resolved"
+    assert (np.abs(d.mean(axis=0)) <= 4 * stderr).all(), (d.mean(axis=0), stderr)
