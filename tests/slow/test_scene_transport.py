@@ -384,41 +384,49 @@ def test_the_residual_albedo_pass_is_the_quadrature(tmp_path, g_model):
         assert got == pytest.approx(want, rel=0.03), (lo, hi, got, want)
 
 
-@pytest.mark.parametrize("lights", ["key_sun", "mixed"])
-def test_the_correction_is_exact_for_the_lights_with_shadow_rays(tmp_path, soft_sky, lights):
-    """The correction's light branches: one sphere (nothing to occlude it, so every shadow
-    ray is traced and must find nothing) under the key Sun, or under docs/lights/mixed.json
-    (every light type and Area shape, a Sun with an angle), and the world; Cook-Torrance G,
-    Disney diffuse, compensated energy: scene equals lab, mean within 1.5%."""
+def _mixed_lights() -> tuple:
+    """docs/lights/mixed.json's eight light slots (every type and Area shape, a Sun with an
+    angle)."""
     from helpers import ROOT
     from addon.core.lights import read_lights
 
+    return tuple(read_lights(ROOT / "docs" / "lights" / "mixed.json"))
+
+
+def _one_sphere(sky, metallic: float, extra: dict):
+    """One sphere of this metallic (smoothness 0.5) under the sky at strength 0.3 and
+    ``extra``'s lights, shadow rays on, in a fresh file: (settings, scene, model node)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    extra = (
-        {"sun_strength": 3.0}
-        if lights == "key_sun"
-        else {"lights": tuple(read_lights(ROOT / "docs" / "lights" / "mixed.json"))}
-    )
     s = MatrixSettings(
         rows=1,
         cols=1,
         width=64,
         height=64,
-        hdri=soft_sky,
+        hdri=sky,
         hdri_strength=0.3,
         mutual_shadows=True,
-        metallic=0.5,
+        metallic=metallic,
         model=ModelOptions(light_transport="scene"),
         **extra,
     )
     scene = bpy.context.scene
     scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
+    return s, scene, node
+
+
+@pytest.mark.parametrize("lights", ["key_sun", "mixed"])
+def test_the_correction_is_exact_for_the_lights_with_shadow_rays(tmp_path, soft_sky, lights):
+    """The correction's light branches: one sphere (nothing to occlude it, so every shadow
+    ray is traced and must find nothing) under the key Sun, or under docs/lights/mixed.json
+    (every light type and Area shape, a Sun with an angle), and the world; Cook-Torrance G,
+    Disney diffuse, compensated energy: scene equals lab, mean within 1.5%."""
+    extra = {"sun_strength": 3.0} if lights == "key_sun" else {"lights": _mixed_lights()}
+    matrix = _one_sphere(soft_sky, 0.5, extra)
     model = dict(
         g_model="cook_torrance", diffuse_model="disney", energy="compensated", env_samples=4
     )
-    assert s.model_options(**model).shadow_rays
-    matrix = (s, scene, node)
+    assert matrix[0].model_options(**model).shadow_rays
     assert_same(
         tmp_path,
         render_transport(matrix, tmp_path / "lab", "lab", **model),
@@ -438,26 +446,8 @@ def test_the_one_sample_correction_weighs_every_light(tmp_path, soft_sky):
     n / (1 - q) (the 8 lights counted as one) reads 26 standard errors off. The world's part
     is small under this sky; test_scene_residual.py's one-technique test holds its weight (a
     world draw not divided by q fails there)."""
-    from helpers import ROOT
-    from addon.core.lights import read_lights
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    s = MatrixSettings(
-        rows=1,
-        cols=1,
-        width=64,
-        height=64,
-        hdri=soft_sky,
-        hdri_strength=0.3,
-        mutual_shadows=True,
-        metallic=1.0,  # smoothness 0.5 (one row)
-        model=ModelOptions(light_transport="scene"),
-        lights=tuple(read_lights(ROOT / "docs" / "lights" / "mixed.json")),
-    )
-    scene = bpy.context.scene
-    scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
-    node = next(model_node.find(m) for m in bpy.data.materials if m.get(scene_builder.TAG))
-    matrix = (s, scene, node)
+    matrix = _one_sphere(soft_sky, 1.0, {"lights": _mixed_lights()})  # smoothness 0.5
+    s = matrix[0]
     images = {}
     for transport in ("scene", "lab"):
         for g_model in ("cook_torrance", "smith_ggx_correlated"):
