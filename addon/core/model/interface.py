@@ -356,7 +356,8 @@ OSL_ONLY = (
         "Env Samples",
         "INT",
         4,
-        "BRDF and environment samples per shading point (each)",
+        "BRDF and environment samples per shading point (each); with the scene transport's "
+        "One-Sample Correction, the correction's draws (one technique each)",
         osl="env_samples",
         min=1,
         max=1024,
