@@ -27,6 +27,8 @@ float pow5(float x) { return (x * x) * (x * x) * x; }
 
 float wrap01(float x) { return x - floor(x); }
 
+float max_component(color c) { return max(c[0], max(c[1], c[2])); }
+
 // ---------------------------------------------------------------------------------------
 // The terms (docs/model.md "The terms")
 

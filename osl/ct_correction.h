@@ -69,7 +69,7 @@ color light_correction_sample(Surface sf, point P, Light lt, int rays, float u[5
             return color(0);    // the direction misses the light
     }
     float cos_l = dot(sf.n, in.dir);
-    if (cos_l <= 0.0 || max(in.Li[0], max(in.Li[1], in.Li[2])) <= 0.0 ||
+    if (cos_l <= 0.0 || max_component(in.Li) <= 0.0 ||
         (lt.shadow && shadowed(P, in.dir, in.dist, rays)))
         return color(0);
     color f_d, f_s;

@@ -64,6 +64,12 @@ float spot_factor(Light lt, vector to_point)
     return smoothstep(0.0, 1.0, (cos_phi - cos_half) / width);
 }
 
+// A slot that holds a light of a known type with some power (the others add nothing).
+int shines(Light lt)
+{
+    return lt.type >= LIGHT_SUN && lt.type <= LIGHT_AREA_ELLIPSE && max_component(lt.power) > 0.0;
+}
+
 // A light of no extent: a Sun of angle 0, a Point or Spot of radius 0 (one direction).
 int is_delta(Light lt)
 {
@@ -249,14 +255,14 @@ void shade_light(Light lt, point P, Surface sf, float p_spec, int rays, float u[
 {
     sum_d = color(0);
     sum_s = color(0);
-    if (lt.type < LIGHT_SUN || lt.type > LIGHT_AREA_ELLIPSE)
+    if (!shines(lt))
         return;
     int delta = is_delta(lt);
     color f_d, f_s;
     Incoming in = sample_light(lt, P, u[0], u[1]);
     vector n = sf.n, v = sf.v;
     float cos_l = dot(n, in.dir);
-    if (cos_l > 0.0 && max(in.Li[0], max(in.Li[1], in.Li[2])) > 0.0 &&
+    if (cos_l > 0.0 && max_component(in.Li) > 0.0 &&
         !(lt.shadow && shadowed(P, in.dir, in.dist, rays))) {
         brdf_toward(sf, in.dir, f_d, f_s);
         float w = delta ? cos_l : cos_l / (in.pdf + brdf_pdf(n, v, in.dir, sf.a, p_spec));
@@ -270,7 +276,7 @@ void shade_light(Light lt, point P, Surface sf, float p_spec, int rays, float u[
     if (cos_l <= 0.0)
         return;
     Incoming hit = light_along(lt, P, dir);
-    if (hit.pdf <= 0.0 || max(hit.Li[0], max(hit.Li[1], hit.Li[2])) <= 0.0 ||
+    if (hit.pdf <= 0.0 || max_component(hit.Li) <= 0.0 ||
         (lt.shadow && shadowed(P, dir, hit.dist, rays)))
         return;
     brdf_toward(sf, dir, f_d, f_s);
