@@ -64,6 +64,37 @@ def _unlink(tree, socket) -> None:
         tree.links.remove(link)
 
 
+# The variants that take whole parts of the converted material out, and which parts
+CUTS = {
+    "no world correction": ("world",),
+    "no per-light groups": ("lights",),
+    "no residual pass": ("residual pass",),
+    "closures alone": ("world", "lights", "residual pass"),
+}
+
+
+def _cut(part: str, main, holder) -> None:
+    """Take one part out: the correction group's world emission, the per-light groups'
+    outputs, or the materials' AOV Output nodes (the residual pass)."""
+    import bpy
+
+    if part == "world":
+        _unlink(main, holder.outputs["Correction"])
+    elif part == "lights":
+        for node in main.nodes:
+            tree = getattr(node, "node_tree", None)
+            if tree is not None and tree.name.endswith(" Light"):
+                for socket in node.outputs:
+                    _unlink(main, socket)
+    else:
+        for mat in bpy.data.materials:
+            if mat.node_tree is not None:
+                for node in [
+                    n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"
+                ]:
+                    mat.node_tree.nodes.remove(node)
+
+
 def apply_variant(variant: str):
     """The function run after the conversion in a render's process (``after_convert``)."""
 
@@ -72,8 +103,9 @@ def apply_variant(variant: str):
 
         main, correction, chains = _groups()
         holder = next(n for n in main.nodes if getattr(n, "node_tree", None) == correction)
-        if variant == "no world correction":
-            _unlink(main, holder.outputs["Correction"])
+        if variant in CUTS:
+            for part in CUTS[variant]:
+                _cut(part, main, holder)
         elif variant == "no pre-filtered chains":
             out = next(n for n in chains.nodes if n.bl_idname == "NodeGroupOutput")
             _unlink(chains, out.inputs[0])
@@ -97,12 +129,6 @@ def apply_variant(variant: str):
             main.links.new(invert.outputs[0], gate.inputs["Fac"])
             main.links.new(holder.outputs["Correction"], gate.inputs[1])
             main.links.new(gate.outputs[0], target)
-        elif variant == "no per-light groups":
-            for node in main.nodes:
-                tree = getattr(node, "node_tree", None)
-                if tree is not None and tree.name.endswith(" Light"):
-                    for socket in node.outputs:
-                        _unlink(main, socket)
         elif variant == "energy none":
             from addon.blender import model_node
 
@@ -110,21 +136,6 @@ def apply_variant(variant: str):
                 node = model_node.find(mat)
                 if node is not None:
                     model_node.set_option(node, "energy", "none")
-        elif variant in ("no residual pass", "closures alone"):
-            for mat in bpy.data.materials:
-                if mat.node_tree is None:
-                    continue
-                for node in [
-                    n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"
-                ]:
-                    mat.node_tree.nodes.remove(node)
-            if variant == "closures alone":
-                _unlink(main, holder.outputs["Correction"])
-                for node in main.nodes:
-                    tree = getattr(node, "node_tree", None)
-                    if tree is not None and tree.name.endswith(" Light"):
-                        for socket in node.outputs:
-                            _unlink(main, socket)
         elif variant != "converted":
             raise SystemExit(f"bench: no variant {variant!r}")
         info["variant"] = variant
