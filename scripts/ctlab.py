@@ -24,7 +24,12 @@ from addon.jobs.cli import main  # noqa: E402  (the Blender layer exposes its bu
 if __name__ == "__main__":
     signals.install()
     argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
-    code = main(argv)
+    try:
+        code = main(argv)
+    except BaseException:
+        signals.yield_to_cancel()  # an error caused by a cancel's removals is not reported
+        raise
+    signals.yield_to_cancel()
     if bpy.app.background and not bpy.app.binary_path.endswith("python"):
         sys.stdout.flush()
     sys.exit(code)

@@ -27,6 +27,7 @@ from ..core.files import live_temporaries
 SIGNALS = {signal.SIGINT, signal.SIGTERM}
 MESSAGE = "ctlab: cancelled; finished outputs are kept\n"
 _watcher = None
+_cancelling = threading.Event()  # set by the watcher before it removes anything
 _stderr = 2  # a copy of the process's stderr taken at install: a writer that sends
 # fd 2 elsewhere for a moment (renderer.quiet) cannot swallow the line
 
@@ -40,6 +41,7 @@ def block() -> None:
 def _cancel() -> None:
     """Remove what a normal exit would have (the temporaries being written, Blender's own
     session folder blender_XXXX in the system's temporary folder) and end the process."""
+    _cancelling.set()
     bpy = sys.modules.get("bpy")
     session = Path(bpy.app.tempdir) if bpy is not None and bpy.app.tempdir else None
     if session is not None and session.name.startswith("blender_"):
@@ -64,6 +66,15 @@ def _remove(path: Path, tries: int = 40) -> None:
         if not os.path.lexists(path):
             return
         time.sleep(0.005)
+
+
+def yield_to_cancel() -> None:
+    """Called by the main thread before it reports an error or exits: when a cancel has
+    begun, wait for the watcher to end the process with 130. Its removals can make the work
+    under way fail (an OSL compile whose folder is gone), and that failure must not win the
+    race with exit status 2 and a second line."""
+    if _cancelling.is_set():
+        threading.Event().wait()  # the watcher's os._exit ends the process
 
 
 def _watch() -> None:

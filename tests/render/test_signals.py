@@ -208,6 +208,60 @@ def test_a_signal_inside_a_registered_temporary_folder_leaves_nothing(sig, tmp_p
     assert not any(tmp.iterdir()), list(tmp.rglob("*"))
 
 
+CHILD_FAILS_AFTER = """
+import argparse, sys, time
+sys.path.insert(0, sys.argv[1])
+from addon.jobs import signals
+signals.block()  # before bpy starts its threads, as scripts/ctlab.py does
+from addon.core.errors import UserError
+from addon.core.files import temporary_folder
+import importlib
+cli = importlib.import_module("addon.jobs.cli.main")
+
+def work(args):
+    with temporary_folder("ctlab-osl-") as folder:
+        print("ready", flush=True)
+        while folder.exists():
+            time.sleep(0.001)
+        raise UserError("the OSL shader failed to compile: its .oso is gone")
+
+class Parser:
+    def parse_args(self, argv):
+        return argparse.Namespace(command="plan", func=work)
+
+def slow_remove(path, _remove=signals._remove):  # a big session folder takes a while
+    _remove(path)
+    time.sleep(0.5)
+
+cli.build_parser = Parser
+signals._remove = slow_remove
+signals.install()
+sys.exit(cli.main([]))
+"""
+
+
+def test_an_error_the_cancel_causes_does_not_win_the_race(tmp_path):
+    """The watcher removes the temporaries while the main thread runs on: work that fails
+    because its folder went (Cycles' compile of the OSL shader, once in CI) raised a
+    UserError that main() reported with exit status 2 before the watcher's exit 130. The
+    main thread now yields to a cancel under way: 130 and the one cancel line."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD_FAILS_AFTER, str(ROOT)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, TMPDIR=str(tmp)),
+    )
+    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    proc.send_signal(signal.SIGTERM)
+    err = proc.communicate(timeout=30)[1]
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == ["ctlab: cancelled; finished outputs are kept"], err
+    assert not any(tmp.iterdir()), list(tmp.rglob("*"))
+
+
 def test_pixel_grid_and_compile_folders_are_registered_temporaries():
     with files.temporary_folder("ctlab-pixels-") as folder:
         assert folder in files.live_temporaries() and folder.is_dir()

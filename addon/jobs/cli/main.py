@@ -7,6 +7,7 @@ import sys
 
 from .options import fill_defaults
 from .parser import build_parser, join_negative_values
+from .. import signals
 from ...core.errors import Cancelled, UserError
 
 EXIT_BAD_INPUT = 2
@@ -25,6 +26,7 @@ def main(argv_=None) -> int:
             fill_defaults(args, "parity" if getattr(args, "parity", False) else "matrix")
         args.func(args)
     except UserError as exc:
+        signals.yield_to_cancel()
         one_line = " ".join(str(exc).split())  # a library's message may hold newlines
         print(f"ctlab: error: {one_line}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
