@@ -187,20 +187,27 @@ with temporary_folder("ctlab-pixels-") as folder, atomic_path(folder / "pixels.e
 """
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_inside_a_registered_temporary_folder_leaves_nothing(sig, tmp_path):
-    """The one cleanup path (jobs/signals.py) removes a pixel grid's temporary folder and a
-    staged file in it, whatever the phase: the process ends at once with 130."""
+def _ready_child(script: str, tmp_path: Path):
+    """A Python child running ``script`` (given the repository's root) with its own
+    $TMPDIR, once it has printed "ready": (that folder, the process)."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     proc = subprocess.Popen(
-        [sys.executable, "-c", CHILD, str(ROOT)],
+        [sys.executable, "-c", script, str(ROOT)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env=dict(os.environ, TMPDIR=str(tmp)),
     )
     assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    return tmp, proc
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_inside_a_registered_temporary_folder_leaves_nothing(sig, tmp_path):
+    """The one cleanup path (jobs/signals.py) removes a pixel grid's temporary folder and a
+    staged file in it, whatever the phase: the process ends at once with 130."""
+    tmp, proc = _ready_child(CHILD, tmp_path)
     assert any(tmp.iterdir())
     proc.send_signal(sig)
     proc.communicate(timeout=30)
@@ -245,16 +252,7 @@ def test_an_error_the_cancel_causes_does_not_win_the_race(tmp_path):
     because its folder went (Cycles' compile of the OSL shader, once in CI) raised a
     UserError that main() reported with exit status 2 before the watcher's exit 130. The
     main thread now yields to a cancel under way: 130 and the one cancel line."""
-    tmp = tmp_path / "tmp"
-    tmp.mkdir()
-    proc = subprocess.Popen(
-        [sys.executable, "-c", CHILD_FAILS_AFTER, str(ROOT)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=dict(os.environ, TMPDIR=str(tmp)),
-    )
-    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    tmp, proc = _ready_child(CHILD_FAILS_AFTER, tmp_path)
     proc.send_signal(signal.SIGTERM)
     err = proc.communicate(timeout=30)[1]
     assert proc.returncode == 130, err
