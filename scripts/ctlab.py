@@ -16,20 +16,12 @@ if ROOT not in sys.path:
 # before Blender starts its threads, so that no thread of Blender's swallows them.
 signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
 
-import bpy  # noqa: E402  (Blender as a module, or the running Blender)
+import bpy  # noqa: E402, F401  (Blender as a module, or the running Blender: started now)
 
 from addon.jobs import signals  # noqa: E402
-from addon.jobs.cli import main  # noqa: E402  (the Blender layer exposes its bundled modules)
+from addon.jobs.cli.main import run_and_exit  # noqa: E402  (the Blender layer exposes its bundled modules)
 
 if __name__ == "__main__":
     signals.install()
     argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
-    try:
-        code = main(argv)
-    except BaseException:
-        signals.yield_to_cancel()  # an error caused by a cancel's removals is not reported
-        raise
-    signals.yield_to_cancel()
-    if bpy.app.background and not bpy.app.binary_path.endswith("python"):
-        sys.stdout.flush()
-    sys.exit(code)
+    run_and_exit(argv)

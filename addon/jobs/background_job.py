@@ -39,10 +39,9 @@ sys.modules["ctlab_job"] = pkg
 import bpy
 getattr(bpy.utils, "expose_bundled_modules", lambda: None)()
 from ctlab_job.addon.jobs import signals
-from ctlab_job.addon.jobs.cli import main
+from ctlab_job.addon.jobs.cli.main import run_and_exit
 signals.install()
-sys.stdout.flush()
-sys.exit(main({argv!r}))
+run_and_exit({argv!r})
 """
 
 

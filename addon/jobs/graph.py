@@ -424,7 +424,7 @@ def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
                     f"({time.perf_counter() - start:.1f} s, worker process)",
                 )
     finally:
-        for proc in running:
+        for proc, (_, log, _) in running.items():
             proc.terminate()
             proc.wait()
             log.close()

@@ -42,14 +42,17 @@ def _cancel() -> None:
     """Remove what a normal exit would have (the temporaries being written, Blender's own
     session folder blender_XXXX in the system's temporary folder) and end the process."""
     _cancelling.set()
-    bpy = sys.modules.get("bpy")
-    session = Path(bpy.app.tempdir) if bpy is not None and bpy.app.tempdir else None
-    if session is not None and session.name.startswith("blender_"):
-        _remove(session)  # Blender's threads may still write into it, as ours may
-    for path in live_temporaries():
-        _remove(Path(path))
-    os.write(_stderr, MESSAGE.encode())
-    os._exit(130)
+    try:
+        bpy = sys.modules.get("bpy")
+        session = Path(bpy.app.tempdir) if bpy is not None and bpy.app.tempdir else None
+        if session is not None and session.name.startswith("blender_"):
+            _remove(session)  # Blender's threads may still write into it, as ours may
+        for path in live_temporaries():
+            _remove(Path(path))
+        with contextlib.suppress(OSError):  # stderr on a full disk, or a pipe closed
+            os.write(_stderr, MESSAGE.encode())
+    finally:
+        os._exit(130)  # whatever failed above: the main thread waits for this (yield_to_cancel)
 
 
 def _remove(path: Path, tries: int = 40) -> None:

@@ -187,19 +187,19 @@ with temporary_folder("ctlab-pixels-") as folder, atomic_path(folder / "pixels.e
 """
 
 
-def _ready_child(script: str, tmp_path: Path):
-    """A Python child running ``script`` (given the repository's root) with its own
-    $TMPDIR, once it has printed "ready": (that folder, the process)."""
+def _ready_child(script: str, tmp_path: Path, *args, stderr=subprocess.PIPE):
+    """A Python child running ``script`` (given the repository's root and ``args``) with its
+    own $TMPDIR, once it has printed "ready": (that folder, the process)."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     proc = subprocess.Popen(
-        [sys.executable, "-c", script, str(ROOT)],
+        [sys.executable, "-c", script, str(ROOT), *args],
         stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        stderr=stderr,
         text=True,
         env=dict(os.environ, TMPDIR=str(tmp)),
     )
-    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    assert proc.stdout.readline().strip() == "ready", proc.stderr and proc.stderr.read()
     return tmp, proc
 
 
@@ -211,6 +211,18 @@ def test_a_signal_inside_a_registered_temporary_folder_leaves_nothing(sig, tmp_p
     assert any(tmp.iterdir())
     proc.send_signal(sig)
     proc.communicate(timeout=30)
+    assert proc.returncode == 130
+    assert not any(tmp.iterdir()), list(tmp.rglob("*"))
+
+
+def test_a_cancel_whose_line_cannot_be_written_still_ends_the_process(tmp_path):
+    """Stderr on a full disk: the watcher's line fails to be written, and the process still
+    ends with 130 with its temporaries gone (it used to leave the watcher dead, the signals
+    blocked and a main thread that waits for the watcher: a process only SIGKILL ends)."""
+    with open("/dev/full", "w") as full:
+        tmp, proc = _ready_child(CHILD, tmp_path, stderr=full)
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=30)
     assert proc.returncode == 130
     assert not any(tmp.iterdir()), list(tmp.rglob("*"))
 
@@ -230,7 +242,8 @@ def work(args):
         print("ready", flush=True)
         while folder.exists():
             time.sleep(0.001)
-        raise UserError("the OSL shader failed to compile: its .oso is gone")
+        if sys.argv[2] == "fails":
+            raise UserError("the OSL shader failed to compile: its .oso is gone")
 
 class Parser:
     def parse_args(self, argv):
@@ -243,16 +256,19 @@ def slow_remove(path, _remove=signals._remove):  # a big session folder takes a 
 cli.build_parser = Parser
 signals._remove = slow_remove
 signals.install()
-sys.exit(cli.main([]))
+cli.run_and_exit([])
 """
 
 
-def test_an_error_the_cancel_causes_does_not_win_the_race(tmp_path):
+@pytest.mark.parametrize("end", ["fails", "returns"])
+def test_an_error_the_cancel_causes_does_not_win_the_race(end, tmp_path):
     """The watcher removes the temporaries while the main thread runs on: work that fails
     because its folder went (Cycles' compile of the OSL shader, once in CI) raised a
-    UserError that main() reported with exit status 2 before the watcher's exit 130. The
-    main thread now yields to a cancel under way: 130 and the one cancel line."""
-    tmp, proc = _ready_child(CHILD_FAILS_AFTER, tmp_path)
+    UserError that main() reported with exit status 2 before the watcher's exit 130; work
+    that ends then exited 0. The main thread now yields to a cancel under way
+    (cli.main.run_and_exit, the entry of scripts/ctlab.py and of the add-on's background
+    job): 130 and the one cancel line."""
+    tmp, proc = _ready_child(CHILD_FAILS_AFTER, tmp_path, end)
     proc.send_signal(signal.SIGTERM)
     err = proc.communicate(timeout=30)[1]
     assert proc.returncode == 130, err

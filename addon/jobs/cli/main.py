@@ -4,6 +4,7 @@ run the command; bad input is one line and exit status 2, a cancel exit status 1
 from __future__ import annotations
 
 import sys
+from typing import NoReturn
 
 from .options import fill_defaults
 from .parser import build_parser, join_negative_values
@@ -31,6 +32,22 @@ def main(argv_=None) -> int:
         print(f"ctlab: error: {one_line}", file=sys.stderr, flush=True)
         return EXIT_BAD_INPUT
     except (Cancelled, KeyboardInterrupt):
+        signals.yield_to_cancel()  # a signal's cancel prints its own line
         print("ctlab: cancelled; finished outputs are kept", file=sys.stderr, flush=True)
         return EXIT_CANCELLED
     return 0
+
+
+def run_and_exit(argv_) -> NoReturn:
+    """A ctlab process's whole run (scripts/ctlab.py, the add-on's background job): ``main``
+    and its exit status. While a signal's cancel is under way (jobs/signals.py) neither an
+    error, which its removals may cause, nor the end of the work decides the status: the
+    watcher's 130 does."""
+    try:
+        code = main(argv_)
+    except BaseException:
+        signals.yield_to_cancel()
+        raise
+    signals.yield_to_cancel()
+    sys.stdout.flush()
+    sys.exit(code)
