@@ -63,7 +63,7 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$STAMP" 2>/dev/null)" != "$want" ]; 
 fi
 PY="$VENV/bin/python"
 # Byte-compile the environment once (about 4 s on 2 cores). Where PYTHONDONTWRITEBYTECODE is
-# set (it is on the CI machine), Python never writes what it compiles, so every process compiled
+# set (it is on this project's machines), Python never writes what it compiles, so every process compiled
 # bpy's start-up scripts, Cycles and numpy again: 1.1 s of a ctlab process's 1.75 s start, paid
 # by every task of a job and every process a test starts. Python reads the files whatever that
 # variable says. A failure here (a file a package ships that does not compile) costs speed only.
