@@ -435,18 +435,38 @@ def test_the_correction_is_exact_for_the_lights_with_shadow_rays(tmp_path, soft_
     )
 
 
-def test_the_one_sample_correction_weighs_every_light(tmp_path, soft_sky):
+# A square Area light of 3 m, 2.2 m from the sphere, facing it: a light's draw and GGX's
+# are then both likely toward it, so the one-sample mixture's density matters.
+BIG_AREA = {
+    "type": "AREA",
+    "name": "Big",
+    "location": [0.0, -2.0, 1.0],
+    "rotation_euler": [1.107, 0.0, 0.0],
+    "energy": 400.0,
+    "shape": "SQUARE",
+    "size": 3.0,
+}
+
+
+@pytest.mark.parametrize("lights", ["mixed", "big_area"])
+def test_the_one_sample_correction_weighs_every_light(tmp_path, soft_sky, lights):
     """The scene transport's correction by one technique per sample (osl/ct_correction.h)
     under docs/lights/mixed.json (8 slots: every light type and Area shape, a Sun with an
-    angle) and the world: per sphere pixel, the Cook-Torrance render minus the Smith render
-    (the same seed, so the same closures: the correction alone) against the lab's estimate
-    of the same difference (every technique; the lab's Cook-Torrance render minus its Smith
-    render, the same draws in both), the mean over the sphere within 4 standard errors in
-    every channel. The bound has teeth: a light's draw weighed by 1 / (1 - q) instead of
-    n / (1 - q) (the 8 lights counted as one) reads 26 standard errors off. The world's part
-    is small under this sky; test_scene_residual.py's one-technique test holds its weight (a
-    world draw not divided by q fails there)."""
-    matrix = _one_sphere(soft_sky, 1.0, {"lights": _mixed_lights()})  # smoothness 0.5
+    angle) or one big Area light, and the world: per sphere pixel, the Cook-Torrance render
+    minus the Smith render (the same seed, so the same closures: the correction alone)
+    against the lab's estimate of the same difference (every technique; the lab's
+    Cook-Torrance render minus its Smith render, the same draws in both), the mean over the
+    sphere within 4 standard errors in every channel. The bound has teeth: a light's draw
+    weighed by 1 / (1 - q) instead of n / (1 - q) (the 8 lights counted as one) reads 26
+    standard errors off under mixed.json; a light's draw divided by its own density
+    alone, not the mixture's, reads 12 standard errors off under the big light (under
+    mixed.json's small lights, 0.6). The world's part is small under this sky;
+    test_scene_residual.py's one-technique test holds its weight (a world draw not divided
+    by q fails there)."""
+    from addon.core.lights import parse_light
+
+    slots = _mixed_lights() if lights == "mixed" else (parse_light(BIG_AREA, "BIG_AREA"),)
+    matrix = _one_sphere(soft_sky, 1.0, {"lights": slots})  # smoothness 0.5
     s = matrix[0]
     images = {}
     for transport in ("scene", "lab"):
