@@ -18,6 +18,7 @@ import re
 import secrets
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 from .errors import UserError
@@ -31,6 +32,11 @@ DATA_DIR = PACKAGE_ROOT / "addon" / "data"  # tables shipped with the extension
 # render, jobs/signals.py) removes; and their names: .NAME.<pid>-<random>.partial[.EXT]
 _live: set = set()
 _STAGING = re.compile(r"^\..+\.(\d+)-[0-9a-f]{8}\.partial(\.[^.]+)?$")
+# temporary_folder's names in the system's temporary folder: ctlab-<what>-<pid>-<random>
+_TEMP_FOLDER = re.compile(r"^ctlab-[a-z]+-(\d+)-[0-9a-f]{12}$")
+# A dead process's temporary folder is removed once it is this old: /tmp may be shared with
+# another PID namespace (a container), where a running process's pid can look dead here.
+TEMP_FOLDER_STALE_SECONDS = 3600.0
 
 
 def _token() -> str:
@@ -71,17 +77,27 @@ def process_alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_temporaries(folder: Path) -> int:
+def remove_stale_temporaries(
+    folder: Path, names=_STAGING, older_than: float = 0.0, folders_only: bool = False
+) -> int:
     """Remove the temporaries in ``folder`` left by processes that no longer run (a killed
-    bake's staging folder, say); returns how many."""
+    bake's staging folder, say): the entries whose name ``names`` matches with the writer's
+    pid as its first group, last changed at least ``older_than`` seconds ago (folders only,
+    when asked); returns how many."""
     removed = 0
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
         return 0
+    now = time.time()
     for entry in entries:
-        m = _STAGING.match(entry.name)
+        m = names.match(entry.name)
         if m and int(m[1]) != os.getpid() and not process_alive(int(m[1])):
+            if folders_only and (entry.is_symlink() or not entry.is_dir()):
+                continue
+            with contextlib.suppress(OSError):
+                if now - entry.lstat().st_mtime < older_than:
+                    continue
             if entry.is_dir():
                 shutil.rmtree(entry, ignore_errors=True)
             else:
@@ -316,8 +332,14 @@ def copy_file(src: Path, dst: Path) -> None:
 @contextlib.contextmanager
 def temporary_folder(prefix: str):
     """A private folder in the system's temporary folder, registered with the cleanup of an
-    interrupt (jobs/signals.py) and removed after the block."""
-    folder = Path(tempfile.gettempdir()) / f"{prefix}{secrets.token_hex(6)}"
+    interrupt (jobs/signals.py) and removed after the block. Its name holds this process's
+    pid, so that those a killed process left (SIGKILL, a power cut: nothing ran to remove
+    them) are removed by a later one once an hour old."""
+    if not _TEMP_FOLDER.match(f"{prefix}0-{'0' * 12}"):
+        raise ValueError(f"temporary folder prefix {prefix!r}: ctlab-<lower-case letters>-")
+    parent = Path(tempfile.gettempdir())
+    remove_stale_temporaries(parent, _TEMP_FOLDER, TEMP_FOLDER_STALE_SECONDS, folders_only=True)
+    folder = parent / f"{prefix}{os.getpid()}-{secrets.token_hex(6)}"
     _live.add(folder)  # before it exists: a signal never misses it
     try:
         folder.mkdir(mode=0o700)

@@ -29,6 +29,7 @@ pytestmark = pytest.mark.one_series
 CASES = {
     "signal-osl-compile": "test_sigterm_while_the_osl_shader_compiles_leaves_nothing",
     "signal-pixel-grid": "test_a_signal_inside_a_registered_temporary_folder_leaves_nothing",
+    "killed-temp-folder": "test_a_killed_processs_temporary_folders_go_once_an_hour_old",
 }
 
 
@@ -286,6 +287,46 @@ def test_pixel_grid_and_compile_folders_are_registered_temporaries():
     for module in (osl_shader, pixel_grid):
         source = inspect.getsource(module)
         assert "temporary_folder(" in source and "mkdtemp" not in source, module
+
+
+def test_a_killed_processs_temporary_folders_go_once_an_hour_old(tmp_path, monkeypatch):
+    """SIGKILL leaves a temporary folder (an OSL compile's, a pixel grid's) that nothing
+    could remove: the next temporary_folder removes those of processes that no longer run,
+    once an hour old, and nothing else: not a younger one, not a running process's, not a
+    name ctlab does not write, not a file, not a link."""
+    monkeypatch.setattr(files.tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    alive = os.getppid()
+    old = time.time() - 2 * files.TEMP_FOLDER_STALE_SECONDS
+    entries = {
+        f"ctlab-osl-{dead.pid}-0123456789ab": (old, False),
+        f"ctlab-pixels-{dead.pid}-ba9876543210": (old, False),
+        f"ctlab-osl-{dead.pid}-00000000000f": (time.time() - 60, True),  # a minute old
+        f"ctlab-osl-{alive}-0123456789ab": (old, True),
+        f"ctlab-osl-{dead.pid}-0123456789ab.keep": (old, True),
+        f"other-osl-{dead.pid}-0123456789ab": (old, True),
+    }
+    for name, (mtime, _) in entries.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "compiled.oso").write_text("bytecode")
+        os.utime(tmp_path / name, (mtime, mtime))
+    user_file = tmp_path / f"ctlab-osl-{dead.pid}-aaaaaaaaaaaa"
+    user_file.write_text("a file")
+    link = tmp_path / f"ctlab-osl-{dead.pid}-bbbbbbbbbbbb"  # to a user's folder: never followed
+    link.symlink_to(tmp_path / f"other-osl-{dead.pid}-0123456789ab")
+    for path in (user_file, link):
+        os.utime(path, (old, old), follow_symlinks=False)
+    with files.temporary_folder("ctlab-osl-") as folder:
+        assert folder.name.startswith(f"ctlab-osl-{os.getpid()}-")
+    kept = {p.name for p in tmp_path.iterdir()}
+    assert kept == {name for name, (_, keep) in entries.items() if keep} | {
+        user_file.name,
+        link.name,
+    }
+    with pytest.raises(ValueError):
+        with files.temporary_folder("ctlab_OSL"):
+            pass
 
 
 def test_a_file_written_while_the_cancel_removes_its_folder_goes_too(tmp_path, monkeypatch):
