@@ -342,7 +342,14 @@ def temporary_folder(prefix: str):
     folder = parent / f"{prefix}{os.getpid()}-{secrets.token_hex(6)}"
     _live.add(folder)  # before it exists: a signal never misses it
     try:
-        folder.mkdir(mode=0o700)
+        try:
+            folder.mkdir(mode=0o700)
+        except OSError as exc:
+            cause = WRITE_ERRORS.get(exc.errno) or exc.strerror or str(exc)
+            raise UserError(
+                f"cannot make a temporary folder in {parent}: {cause}; free space there or "
+                "set TMPDIR to another folder (nothing was written)"
+            ) from None
         yield folder
     finally:
         shutil.rmtree(folder, ignore_errors=True)

@@ -21,20 +21,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..blender import material_export
+from ..core import files
 from ..core.export import gltf, materialx, network, usd
 from ..core.errors import UserError
-from ..core.files import (
-    atomic_path,
-    check_writable,
-    copy_file,
-    refuse_overwrite,
-    temporary_folder,
-    write_json,
-    write_text,
-)
+from ..core.gate import Gate, check_name, read_input
 from ..core.paths import safe_name
 
 FORMATS = ("materialx", "usd", "gltf")
+WHAT = "the export's files"
 
 
 def plan_outputs(materials: list, fmt: str, out: Path, stem: str) -> dict:
@@ -52,96 +46,136 @@ def plan_outputs(materials: list, fmt: str, out: Path, stem: str) -> dict:
     raise UserError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")
 
 
-def write_export(materials: list, files: list, fmt: str, out: Path, stem: str, inputs=()) -> list:
-    """Write the format's documents and the textures into ``out`` (each file whole); the
-    paths written."""
+def _texture_label(f) -> str:
+    return str(f.source) if f.source else f"the packed image of {f.name}"
+
+
+def _decode(f, scratch: Path):
+    """The texture's pixels (float, h x w x 3), read before anything is written: a file that
+    is not a readable image is one line naming it (the input, never the output)."""
+    from ..core.compare import read_image
+
+    path = Path(f.source) if f.source else scratch / f"packed{Path(f.name).suffix}"
+    if not f.source:
+        try:
+            path.write_bytes(f.data)
+        except OSError as exc:
+            raise UserError(
+                f"cannot write a temporary copy of {_texture_label(f)} in {scratch.parent}: "
+                f"{files.WRITE_ERRORS.get(exc.errno) or exc.strerror or exc}; free space "
+                "there or set TMPDIR to another folder (nothing was written)"
+            ) from None
+    try:
+        return read_input(path, "texture", read_image)
+    except UserError as exc:
+        why = " ".join(str(exc).split())[:160]
+        raise UserError(
+            f"texture {_texture_label(f)} is not a readable image ({why}); nothing was written"
+        ) from None
+    finally:
+        if not f.source:
+            path.unlink(missing_ok=True)
+
+
+def _write_bytes(data: bytes):
+    return lambda tmp: tmp.write_bytes(data)
+
+
+def _copy(source: Path):
+    def write(tmp: Path) -> None:
+        tmp.write_bytes(read_input(source, "texture", Path.read_bytes))
+
+    return write
+
+
+def _png(pixels, final: Path):
+    from ..core.compare import write_png_to
+
+    return lambda tmp: write_png_to(tmp, pixels, final)
+
+
+def write_export(
+    materials: list,
+    files_: list,
+    fmt: str,
+    out: Path,
+    stem: str,
+    inputs=(),
+    force: bool = False,
+) -> list:
+    """Write the format's documents and the textures into ``out`` through its write gate
+    (core.gate: a file ctlab did not write is never replaced, unless ``force``; no link is
+    followed; every texture is read and decoded first; all files land together or none);
+    the paths written."""
     if not materials:
         raise UserError("no Cook-Torrance material to export")
+    out = Path(out)
     docs = plan_outputs(materials, fmt, out, stem)
     if fmt == "gltf":  # the .gltf's images only: the packed image replaces the raw maps
         uris = {img["uri"] for doc in docs.values() for img in doc.get("images", ())}
-        copied = [f for f in files if f.name in uris]
-        packed = [n for n in map(gltf.metallic_roughness_name, materials) if n is not None]
+        copied = [f for f in files_ if f.name in uris]
     else:
-        copied, packed = files, []
-    textures = {out / f.name: f for f in copied}
-    sources = [Path(f.source) for f in files if f.source]
-    refuse_overwrite(
-        list(inputs) + sources, list(docs) + list(textures) + [out / n for n in packed]
+        copied = files_
+    for f in files_:
+        for part in Path(f.name).parts:
+            check_name(part, "the texture name")
+    gate = Gate(out, WHAT, force=force)
+    gate.check(
+        [str(p.relative_to(out)) for p in docs] + [f.name for f in copied],
+        list(inputs) + [Path(f.source) for f in files_ if f.source],
     )
-    check_writable(out)
-    written = []
-    for path, f in textures.items():
-        check_writable(path.parent)
-        if f.source:
-            copy_file(Path(f.source), path)
-        else:
-            with atomic_path(path) as tmp:
-                Path(tmp).write_bytes(f.data)
-        written.append(path)
+    pixels = {}
+    with files.temporary_folder("ctlab-export-") as scratch:
+        for f in files_:
+            pixels[f.name] = _decode(f, scratch)
+    writers = {f.name: _copy(Path(f.source)) if f.source else _write_bytes(f.data) for f in copied}
     if fmt == "gltf":
-        written += write_metallic_roughness(materials, files, out)
+        for name, image in metallic_roughness_images(materials, pixels).items():
+            writers[name] = _png(image, out / name)
     for path, doc in docs.items():
-        if isinstance(doc, dict):
-            write_json(path, doc)
-        else:
-            write_text(path, doc)
-        written.append(path)
-    return written
+        text = files.json_text(doc) if isinstance(doc, dict) else doc
+        writers[str(path.relative_to(out))] = _write_bytes(text.encode("utf-8"))
+    return gate.write(writers, list(inputs) + [Path(f.source) for f in files_ if f.source])
 
 
-def write_metallic_roughness(materials: list, files: list, out: Path) -> list:
+def metallic_roughness_images(materials: list, pixels: dict) -> dict:
     """glTF's packed metallic-roughness images (core.export.gltf.metallic_roughness_pixels),
-    read from the maps' own files (a map packed in the .blend through a private temporary
-    file): the maps themselves are not written into ``out``, which does not reference them."""
-    from ..core.compare import read_image, write_png
-
-    by_name = {f.name: f for f in files}
-    written = []
-    with temporary_folder("ctlab-export-") as tmp:
-
-        def read(name: str):
-            f = by_name[name]
-            path = Path(f.source) if f.source else tmp / Path(name).name
-            if not f.source and not path.exists():
-                path.write_bytes(f.data)
-            return read_image(path)[..., 0]
-
-        for mat in materials:
-            name = gltf.metallic_roughness_name(mat)
-            if name is None:
-                continue
-            maps = {
-                key: read(mat.textures[key].file)
-                for key in ("metallic", "smoothness")
-                if key in mat.textures
-            }
-            invert = "smoothness" in mat.textures and mat.textures["smoothness"].invert
-            pixels = gltf.metallic_roughness_pixels(
-                maps.get("metallic"), maps.get("smoothness"), invert
-            )
-            check_writable((out / name).parent)  # textures/ may hold no other image
-            write_png(out / name, pixels)
-            written.append(out / name)
-    return written
+    name -> pixels, from the maps' decoded pixels: the maps themselves are not written into
+    the folder, which does not reference them."""
+    images = {}
+    for mat in materials:
+        name = gltf.metallic_roughness_name(mat)
+        if name is None:
+            continue
+        maps = {
+            key: pixels[mat.textures[key].file][..., 0]
+            for key in ("metallic", "smoothness")
+            if key in mat.textures
+        }
+        invert = "smoothness" in mat.textures and mat.textures["smoothness"].invert
+        images[name] = gltf.metallic_roughness_pixels(
+            maps.get("metallic"), maps.get("smoothness"), invert
+        )
+    return images
 
 
-def run_export(blend: Path, fmt: str, out: Path, log=None) -> dict:
-    """Open ``blend`` (never saved), read its Cook-Torrance materials, write the export."""
+def run_export(blend: Path, fmt: str, out: Path, log=None, force: bool = False) -> dict:
+    """Open ``blend`` (never saved), read its Cook-Torrance materials, write the export
+    (``force``: replace files of the same names that ctlab did not write)."""
     from ..blender.user_blend import check_blend_file, open_blend
 
     if fmt not in FORMATS:
         raise UserError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")
     blend = check_blend_file(blend)
     open_blend(blend, log)
-    materials, files, notes = material_export.read_materials()
+    materials, files_, notes = material_export.read_materials()
     if not materials:
         raise UserError(
             f"{blend.name} has no Cook-Torrance material; convert one first (Material "
             "Properties > Cook-Torrance > Principled to Cook-Torrance)"
         )
     stem = safe_name(blend.stem, "export")
-    written = write_export(materials, files, fmt, out, stem, inputs=[blend])
+    written = write_export(materials, files_, fmt, out, stem, inputs=[blend], force=force)
     return {
         "materials": [
             {

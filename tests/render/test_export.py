@@ -219,7 +219,11 @@ def test_export_gltf(blends, tmp_path):
     uris = {img["uri"] for img in doc["images"]}
     on_disk = {p.relative_to(out).as_posix() for p in (out / "textures").rglob("*")}
     assert on_disk <= uris, on_disk - uris
-    assert sorted(p.name for p in out.iterdir()) == ["export.gltf", "textures"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".ctlab-written.json",  # the write gate's record (core/gate.py)
+        "export.gltf",
+        "textures",
+    ]
 
 
 def test_export_gltf_packs_a_map_from_the_blend(tmp_path):
@@ -238,7 +242,11 @@ def test_export_gltf_packs_a_map_from_the_blend(tmp_path):
     files = [TextureFile("textures/r.png", data=src.read_bytes())]
     out = tmp_path / "out"
     written = write_export([mat], files, "gltf", out, "x")
-    names = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    names = sorted(
+        p.relative_to(out).as_posix()
+        for p in out.rglob("*")
+        if p.is_file() and p.name != ".ctlab-written.json"  # the write gate's record
+    )
     assert names == ["textures/R_metallic_roughness.png", "x.gltf"], names
     assert sorted(p.relative_to(out).as_posix() for p in written) == names
     pixels = compare.read_image(out / "textures" / "R_metallic_roughness.png")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 
-from .options import BLEND, FORMAT, OUT, VERBOSE, Command, check_path
+from .options import BLEND, FORCE, FORMAT, OUT, VERBOSE, Command, check_path
 from .output import say, warn
 from ...core.paths import input_file
 
@@ -19,7 +19,8 @@ def run(args) -> None:
     )
     out = check_path(args.out, "--out")
     say(f"export {blend}: its Cook-Torrance materials as {args.format} -> {out}")
-    data = run_export(blend, args.format, out, None if args.verbose else os.devnull)
+    log = None if args.verbose else os.devnull
+    data = run_export(blend, args.format, out, log, force=args.force)
     for note in data["notes"]:
         warn(note)
     for m in data["materials"]:
@@ -32,6 +33,6 @@ COMMAND = Command(
     "export",
     "a .blend's Cook-Torrance materials as MaterialX (.mtlx per material), USD (UsdShade "
     "materials with the MaterialX network) or glTF (metallic-roughness)",
-    (BLEND, FORMAT, OUT.but(help="output folder (the images go to textures/)"), VERBOSE),
+    (BLEND, FORMAT, OUT.but(help="output folder (the images go to textures/)"), FORCE, VERBOSE),
     run,
 )

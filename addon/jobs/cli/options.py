@@ -309,6 +309,12 @@ CONVERT = Option(
 )
 CAMERA = Option("--camera", "a camera object (default: the scene's)")
 FORMAT = Option("--format", "|".join(FORMATS), choices=FORMATS, required=True)
+FORCE = Option(
+    "--force",
+    "replace files of the same names in --out that ctlab did not write (by default they are "
+    "refused and left alone)",
+    bool,
+)
 
 
 def per_material(option: Option, word: str) -> Option:

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import bpy
-from bpy.props import EnumProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from ...blender import material_export, model_node
 from ...core.errors import UserError
@@ -30,6 +30,12 @@ class CTLAB_OT_export_materialx(bpy.types.Operator):
 
     directory: StringProperty(name="Folder", subtype='DIR_PATH', default="")
     scope: EnumProperty(name="Materials", items=_EXPORT_SCOPE, default="ALL")
+    overwrite: BoolProperty(
+        name="Overwrite",
+        description="Replace files of the same names in the folder that Cook-Torrance Lab did "
+        "not write (by default they are refused and left alone)",
+        default=False,
+    )
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
@@ -53,7 +59,9 @@ class CTLAB_OT_export_materialx(bpy.types.Operator):
                 raise UserError("this file has no Cook-Torrance material to export")
             stem = safe_name(Path(bpy.data.filepath).stem or "untitled", "export")
             inputs = [Path(bpy.data.filepath)] if bpy.data.filepath else []
-            written = write_export(materials, files, "materialx", out, stem, inputs=inputs)
+            written = write_export(
+                materials, files, "materialx", out, stem, inputs=inputs, force=self.overwrite
+            )
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
