@@ -14,12 +14,16 @@ render farm").
   as a ``//`` path too. After the save the inputs get their cache paths back, so the open
   session keeps reading the cache (``save_pre`` / ``save_post`` handlers).
 
-Nothing is deleted: a file already in the folder with the same size is kept, so a folder
-written by an earlier save may hold files no longer read (a world since replaced).
+The folder is written through its write gate (core/gate.py): a file of the user's there, or
+one ctlab wrote and the user changed, is never replaced (the save goes on, one line says the
+files stay in the cache), and no link is followed. Nothing is deleted: a folder written by
+an earlier save may hold files no longer read (a world since replaced).
 """
 
 from __future__ import annotations
 
+import os
+import shutil
 from pathlib import Path
 
 import bpy
@@ -27,7 +31,8 @@ import bpy
 from . import model_node, osl_shader
 from ..core.cache import MANIFEST, cache_dir
 from ..core.errors import UserError
-from ..core.files import copy_file
+from ..core.files import sha256
+from ..core.gate import Gate
 from ..core.paths import clean
 
 FOLDER_SUFFIX = "_ctlab"
@@ -35,6 +40,7 @@ FOLDER_SUFFIX = "_ctlab"
 FILE_INPUTS = ("hdri", "tables", "ibl_bake", "env_marginal", "env_conditional", "env_pdf_table")
 
 _restore: list = []  # (material, node name, input, value) to put back after the save
+_saved_as: list = [""]  # the file as last opened or saved, which its // paths are relative to
 
 
 def files_folder(blend: Path) -> Path:
@@ -50,36 +56,62 @@ def _ours(folder: Path) -> bool:
     return parent == cache_dir(create=False) or parent.name.endswith(FOLDER_SUFFIX)
 
 
-def _carry(entry: Path, dest: Path) -> None:
-    """Copy a cache entry's files into ``dest`` (each whole), but those already there."""
-    dest.mkdir(parents=True, exist_ok=True)
-    for f in sorted(entry.iterdir()):
-        if f.name.startswith(".") or f.name == MANIFEST or not f.is_file():
-            continue
-        target = dest / f.name
-        if not target.is_file() or target.stat().st_size != f.stat().st_size:
-            copy_file(f, target)
+def _carry(entry: Path, folder: Path) -> None:
+    """Copy a cache entry's files into ``folder/<entry name>`` through the folder's write gate
+    (core.gate): a file there of the same content is kept as it is; one ctlab wrote there
+    (its record) is replaced; any other, the user's, or a link on the way, is refused in one
+    line and nothing is copied."""
+    sources = {
+        f"{entry.name}/{f.name}": f
+        for f in sorted(entry.iterdir())
+        if not f.name.startswith(".") and f.name != MANIFEST and f.is_file()
+    }
+    gate = Gate(folder, "the OSL materials' files")
+    needed = {}
+    for rel, f in sources.items():
+        target = folder / rel
+        if target.is_file() and not target.is_symlink() and sha256(target) == sha256(f):
+            continue  # the same bytes: nothing to write
+        needed[rel] = f
+    if needed:
+        gate.write({rel: _copy(f) for rel, f in needed.items()}, inputs=list(needed.values()))
+
+
+def _copy(source: Path):
+    def write(tmp: Path) -> None:
+        shutil.copyfile(source, tmp)
+
+    return write
+
+
+def _resolve(value: str) -> Path:
+    """An input's file: a ``//`` path from the folder of the file as it was last opened or
+    saved (``_saved_as``), whatever Blender's current file path says during a Save As."""
+    start = os.path.dirname(_saved_as[0] or bpy.data.filepath) or None
+    return Path(bpy.path.abspath(value, start=start))
 
 
 def portable_path(value: str, blend: Path) -> str | None:
     """The value an OSL file input is saved with in ``blend``: a ``//`` path into the files
     folder for the add-on's files (copied there), a ``//`` path for a file inside the .blend's
-    folder, or None to keep ``value`` (empty, missing, or a file of the user's elsewhere)."""
+    folder, the absolute path of a file elsewhere that was given relative to the old file's
+    folder (a Save As into another folder), or None to keep ``value`` (empty, missing, or an
+    absolute path of the user's elsewhere)."""
     if not value:
         return None
-    path = Path(bpy.path.abspath(value))
+    path = _resolve(value)
     if not path.exists():
         return None
     entry = path if path.is_dir() else path.parent
     if _ours(entry):
         folder = files_folder(blend)
         if entry != folder / entry.name:
-            _carry(entry, folder / entry.name)
+            _carry(entry, folder)
         target = folder / entry.name / (path.name if path.is_file() else "")
         return bpy.path.relpath(str(target).rstrip("/"), start=str(blend.parent))
     if blend.parent in path.parents:
         return bpy.path.relpath(str(path), start=str(blend.parent))
-    return None
+    return str(path) if value.startswith("//") else None
 
 
 def _osl_nodes():
@@ -116,8 +148,16 @@ def on_save_pre(filepath="", *_args) -> None:
 
 
 @bpy.app.handlers.persistent
+def on_load_post(*_args) -> None:
+    """The file just opened: its // paths are relative to it."""
+    _saved_as[0] = bpy.data.filepath
+
+
+@bpy.app.handlers.persistent
 def on_save_post(*_args) -> None:
-    """After the file is written: the open session reads the cache again."""
+    """After the file is written: the open session reads the cache again (and its // paths
+    are relative to the file as now saved)."""
+    _saved_as[0] = bpy.data.filepath
     for mat, name, key, value in _restore:
         node = mat.node_tree.nodes.get(name)
         if node is not None:
@@ -133,6 +173,7 @@ def _handlers():
         (h.save_pre, on_save_pre),
         (h.save_post, on_save_post),
         (h.save_post_fail, on_save_post),
+        (h.load_post, on_load_post),
     )
 
 
