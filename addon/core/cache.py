@@ -127,7 +127,19 @@ def lookup(key: str) -> Path | None:
 def _remove_damaged(folder: Path) -> None:
     """Remove a damaged entry: only the files its manifest lists, then the manifest and the
     folder. Anything else there (a folder, a file it does not list: not ctlab's) stays, and
-    the entry is refused with the reason."""
+    the entry is refused with the reason; so is one ctlab may not remove (another user's)."""
+    try:
+        _remove_listed(folder)
+    except OSError as exc:
+        raise UserError(
+            f"the damaged cache entry {folder} cannot be removed "
+            f"({exc.strerror or exc}: {exc.filename or folder}); it was left alone: remove "
+            "it yourself or choose another cache folder (CTLAB_CACHE, the add-on's "
+            "preferences)"
+        ) from None
+
+
+def _remove_listed(folder: Path) -> None:
     listed = _listed(folder)
     if listed is None:
         raise UserError(
@@ -153,6 +165,12 @@ def _remove_damaged(folder: Path) -> None:
             )
     (folder / MANIFEST).unlink(missing_ok=True)
     folder.rmdir()
+
+
+def discard(folder: Path) -> None:
+    """Remove an entry whose files match its manifest but do not read back (re-signed by
+    hand, say): as a damaged one (``_remove_damaged``)."""
+    _remove_damaged(Path(folder))
 
 
 def build(key: str, fill) -> Path:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import zipfile
 from dataclasses import asdict
 from pathlib import Path
 
@@ -23,8 +24,9 @@ import numpy as np
 from ..core import cache
 from ..core.files import NODE_GROUPS_DIR, OSL_DIR, PACKAGE_ROOT
 
-VERSION = 1
+VERSION = 2  # 2: the .npz holds an index of its arrays
 RESULTS = "results.npz"
+INDEX = "index"  # the .npz's index of its arrays (save)
 SEPARATOR = "|"  # between the nested keys of an array's name in the .npz
 _ADDON = PACKAGE_ROOT / "addon"  # the add-on's Python package
 
@@ -57,14 +59,23 @@ def key(settings) -> str:
 
 
 def save(results: dict, path: Path) -> None:
-    """The results (nested dicts of arrays, "labels" a dict of strings) as one .npz."""
+    """The results (nested dicts of arrays, "labels" a dict of strings) as one .npz, with an
+    index of its arrays (name, dtype, shape and a digest of the bytes) that load checks."""
     arrays = {k: v for k, v in results.items() if k != "labels"}
     flat = {}
     for tag, tree in arrays.items():
         for name, value in _leaves(tree):
             flat[SEPARATOR.join((tag, *name))] = np.asarray(value)
     flat["labels"] = np.frombuffer(json.dumps(results.get("labels", {})).encode(), np.uint8)
+    index = {name: _describe(value) for name, value in flat.items()}
+    flat[INDEX] = np.frombuffer(json.dumps(index, sort_keys=True).encode(), np.uint8)
     np.savez(Path(path), **flat)
+
+
+def _describe(value: np.ndarray) -> list:
+    value = np.ascontiguousarray(value)
+    digest = hashlib.sha256(value.tobytes()).hexdigest()
+    return [str(value.dtype), list(value.shape), digest]
 
 
 def _leaves(tree, name=()):
@@ -76,27 +87,37 @@ def _leaves(tree, name=()):
 
 
 def load(path: Path) -> dict:
-    """The results that save() wrote."""
+    """The results that save() wrote; a ValueError when they are not whole (an array
+    missing, added or changed against the index)."""
     results: dict = {}
     with np.load(path, allow_pickle=False) as data:
-        for full in data.files:
+        index = json.loads(data[INDEX].tobytes().decode())
+        arrays = {name: data[name] for name in data.files if name != INDEX}
+        if not isinstance(index, dict) or {n: _describe(a) for n, a in arrays.items()} != index:
+            raise ValueError(f"{path} does not match its index")
+        for full, value in arrays.items():
             if full == "labels":
-                results["labels"] = json.loads(data[full].tobytes().decode())
+                results["labels"] = json.loads(value.tobytes().decode())
                 continue
             tag, *name = full.split(SEPARATOR)
             node = results.setdefault(tag, {})
             for k in name[:-1]:
                 node = node.setdefault(k, {})
-            node[name[-1]] = data[full]
+            node[name[-1]] = value
     return results
 
 
 def cached(settings, evaluate) -> dict:
-    """The plot's results from the cache, else ``evaluate()``'s, then kept there."""
+    """The plot's results from the cache, else ``evaluate()``'s, then kept there. An entry
+    whose manifest holds but whose results do not read back whole (re-signed by hand) is
+    discarded and rendered again, never used."""
     k = key(settings)
     hit = cache.lookup(k)
     if hit is not None:
-        return load(hit / RESULTS)
+        try:
+            return load(hit / RESULTS)
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+            cache.discard(hit)
     results = evaluate()
     cache.build(k, lambda stage: save(results, stage / RESULTS))
     return results

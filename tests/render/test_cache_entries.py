@@ -3,6 +3,7 @@ again, never used; an entry holding a file ctlab did not write loses nothing of 
 dead process's staging folder is removed; an unwritable cache folder is one line naming the
 remedy."""
 
+import json
 import os
 import subprocess
 import sys
@@ -28,6 +29,8 @@ SMALL = ["--grid", "2x2", "--size", "32", "--samples", "1"]
 # them and that each names a test here): ID -> the test.
 CASES = {
     "cache-foreign-file": "test_a_damaged_cache_entry_with_a_users_file_loses_nothing_of_theirs",
+    "cache-entry-not-removable": "test_a_damaged_entry_ctlab_may_not_remove_is_one_line",
+    "plot-entry-resigned": "test_a_re_signed_damaged_plot_entry_is_rendered_again",
 }
 
 
@@ -142,3 +145,52 @@ def test_an_unwritable_cache_names_the_remedy(tmp_path, capsys, monkeypatch):
         capsys, cli.main(["bake", str(tiny_hdri(tmp_path / "sky.exr"))]), "cache folder not usable"
     )
     assert "CTLAB_CACHE" in line and "preferences" in line
+
+
+def _plot_entry(monkeypatch, tmp_path):
+    """A plot cache entry of a small result, as plot_cache.cached keeps it."""
+    from addon.core.brdf_plot import PlotSettings
+    from addon.jobs import plot_cache
+
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
+    settings = PlotSettings(views=("D",))
+    results = {"main": {"slice": {"f_r": np.ones((2, 3), np.float32)}}, "labels": {"main": "x"}}
+    assert plot_cache.cached(settings, lambda: results)["labels"] == {"main": "x"}
+    return plot_cache, settings, results, cache.lookup(plot_cache.key(settings))
+
+
+def test_a_re_signed_damaged_plot_entry_is_rendered_again(tmp_path, monkeypatch):
+    """A plot entry whose results were damaged and its manifest signed again (so the
+    manifest holds): garbage bytes, or a valid .npz with one array changed. Either is found
+    when read, removed and rendered again, never used and never a traceback."""
+    plot_cache, settings, results, folder = _plot_entry(monkeypatch, tmp_path)
+    data = dict(np.load(folder / plot_cache.RESULTS))
+    data["main|slice|f_r"] = np.zeros((2, 3), np.float32)  # a valid file, the wrong numbers
+    for damage in (lambda p: p.write_bytes(b"PK\x03\x04 not a zip"), lambda p: np.savez(p, **data)):
+        damage(folder / plot_cache.RESULTS)
+        (folder / cache.MANIFEST).write_text(json.dumps(cache._manifest(folder)))
+        assert cache.intact(folder)  # the manifest holds: only reading finds the damage
+        fresh = {"main": {"slice": {"f_r": np.full((2, 3), 2.0, np.float32)}}, "labels": {}}
+        got = plot_cache.cached(settings, lambda f=fresh: f)
+        assert got is fresh
+        again = plot_cache.cached(settings, lambda: pytest.fail("not read from the cache"))
+        assert np.array_equal(again["main"]["slice"]["f_r"], fresh["main"]["slice"]["f_r"])
+
+
+def test_a_damaged_entry_ctlab_may_not_remove_is_one_line(tmp_path, monkeypatch):
+    """A damaged entry that ctlab may not remove (another user's: unlink refused) is one
+    line naming the entry and the remedy, not a traceback; its files stay."""
+    plot_cache, settings, results, folder = _plot_entry(monkeypatch, tmp_path)
+    (folder / plot_cache.RESULTS).write_bytes(b"damaged")  # the manifest no longer holds
+
+    def refused(self, *a, **k):
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "unlink", refused)
+    with pytest.raises(UserError) as err:
+        plot_cache.cached(settings, lambda: results)
+    monkeypatch.undo()
+    message = str(err.value)
+    assert "\n" not in message
+    assert f"the damaged cache entry {folder} cannot be removed (Permission denied" in message
+    assert (folder / plot_cache.RESULTS).read_bytes() == b"damaged"
