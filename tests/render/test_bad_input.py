@@ -229,6 +229,8 @@ CASE_MODULES = (
     "test_cache_entries",
     "test_signals",
     "test_job_folder_input",
+    "test_write_gate",
+    "test_travel_folder",
 )
 
 
