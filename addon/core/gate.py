@@ -132,13 +132,17 @@ class Gate:
         written (the module's rules); the inputs are no outputs."""
         if self.root.exists() and not self.root.is_dir():  # the folder the user named: a
             self._folder(self.root)  # link to a folder is the user's choice, below it none
-        seen = set()
+        rels = list(rels)
         for rel in rels:
             parts = Path(rel).parts
             if not parts or Path(rel).is_absolute() or ".." in parts:
                 raise ValueError(f"{rel!r} is not a path inside the folder")
             for part in parts:
                 check_name(part, "the output name")
+        files.refuse_overwrite(list(inputs), [self.root / r for r in rels] + [self.root / RECORD])
+        seen = set()
+        for rel in rels:
+            parts = Path(rel).parts
             key = os.path.normcase(rel)
             if key in seen:
                 raise UserError(f"two outputs would share {self.root / rel}; rename one")
@@ -149,7 +153,6 @@ class Gate:
                 self._folder(where)
             self._file(rel)
         self.record()  # a foreign file in the record's place is refused now
-        files.refuse_overwrite(list(inputs), [self.root / r for r in rels] + [self.root / RECORD])
 
     def _folder(self, path: Path) -> None:
         st = _lstat(path)

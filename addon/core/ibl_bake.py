@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from . import cache
-from .files import DATA_DIR, check_writable, copy_file, refuse_overwrite, write_json
+from .files import DATA_DIR, write_json
+from .gate import Gate
 from .hdri import file_hash, load_hdri, write_float_exr
 from .latlong import cosine_kernel, downsample, ggx_kernel, zonal_convolve
 from .model import G_MODELS, ggx_alpha
@@ -422,13 +423,16 @@ def file_names() -> list:
     )
 
 
-def export(folder: Path, out_dir: Path, source=None) -> None:
-    """Copy a bake folder's files into out_dir, each whole or not at all, never over the
-    ``source`` HDRI."""
-    out_dir = check_writable(out_dir)
+def export(folder: Path, out_dir: Path, source=None, force: bool = False) -> None:
+    """Copy a bake folder's files into out_dir through its write gate (core.gate: all whole
+    or none, never over the ``source`` HDRI, never over a file ctlab did not write there
+    unless ``force``, never through a link)."""
     files = sorted(
         f for f in Path(folder).iterdir() if not f.name.startswith(".") and f.name != cache.MANIFEST
     )
-    refuse_overwrite([source], [out_dir / f.name for f in files])
-    for f in files:
-        copy_file(f, out_dir / f.name)
+
+    def copy(src: Path):
+        return lambda tmp: shutil.copyfile(src, tmp)
+
+    gate = Gate(out_dir, "the bake's files", force=force)
+    gate.write({f.name: copy(f) for f in files}, inputs=[source] if source else [])

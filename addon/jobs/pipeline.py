@@ -25,6 +25,7 @@ from ..core import brdf_plot, energy, ibl_bake
 from ..core.errors import Cancelled, UserError
 from ..core.hdri import load_hdri
 from ..core.files import check_writable, forget_report, refuse_overwrite
+from ..core.gate import Gate
 from ..core.model import BAKED_IBL_MODES, DEFAULT_TRANSPORT, G_MODELS, LAB
 from ..core.paths import safe_name
 from ..core.settings import (
@@ -455,16 +456,23 @@ def run_plot(
 # The bake
 
 
-def run_bake(hdri: Path, out: Path | None = None, events: Events | None = None, warn=None) -> Path:
+def run_bake(
+    hdri: Path,
+    out: Path | None = None,
+    events: Events | None = None,
+    warn=None,
+    force: bool = False,
+) -> Path:
     """Bake the split-sum files of an HDRI (cached by content hash); with ``out`` copy them
-    there. Returns the folder holding them."""
+    there through its write gate (core.gate; ``force``: over files ctlab did not write).
+    Returns the folder holding them."""
     events = events or Events()
     load_hdri(hdri)  # the HDRI checked before --out is made
     if out:
-        refuse_overwrite([hdri], [Path(out) / name for name in ibl_bake.file_names()])
+        Gate(out, "the bake's files", force=force).check(ibl_bake.file_names(), inputs=[hdri])
         check_writable(out)
     folder = ibl_bake.bake(Path(hdri), events.bake_progress, warn)
     if out:
-        ibl_bake.export(folder, Path(out), source=hdri)
+        ibl_bake.export(folder, Path(out), source=hdri, force=force)
         folder = Path(out)
     return folder

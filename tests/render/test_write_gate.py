@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pytest
 
-from helpers import ROOT
+from helpers import ROOT, tiny_hdri
 from addon.blender.material_export import TextureFile
 from addon.core import compare, gate
 from addon.core.errors import UserError
@@ -34,6 +34,7 @@ CASES = {
     "export-texture-damaged": "test_a_damaged_texture_is_named_and_nothing_is_written",
     "export-record-foreign": "test_a_foreign_file_in_the_records_place_is_refused",
     "export-tmpdir-full": "test_a_full_tmpdir_while_decoding_a_packed_map_is_one_line",
+    "bake-users-file": "test_bake_out_keeps_a_users_file_before_baking",
 }
 
 
@@ -201,3 +202,26 @@ def test_the_cli_refuses_with_one_line_and_force_replaces(tmp_path):
     run = subprocess.run([*args, "--force"], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     assert "<materialx" in (out / "Gold.mtlx").read_text()
+
+
+def test_bake_out_keeps_a_users_file_before_baking(tmp_path, monkeypatch, capsys):
+    """``bake --out DIR`` where DIR holds the user's irradiance.exr: refused in one line
+    before anything is baked (the cache stays empty), the file kept; --force replaces it."""
+    from addon.core import ibl_bake
+    from addon.jobs import cli
+
+    monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
+    hdri = tiny_hdri(tmp_path / "sky.exr")
+    out = tmp_path / "out"
+    out.mkdir()
+    mine = out / ibl_bake.IRRADIANCE_FILE
+    mine.write_bytes(b"the user's irradiance")
+    assert cli.main(["bake", str(hdri), "--out", str(out)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and "is a file ctlab did not write" in err[0], err
+    assert mine.read_bytes() == b"the user's irradiance"
+    assert sorted(p.name for p in out.iterdir()) == [mine.name]
+    assert not (tmp_path / "cache").exists() or not any((tmp_path / "cache").iterdir())
+    assert cli.main(["bake", str(hdri), "--out", str(out), "--force"]) == 0
+    assert mine.read_bytes() != b"the user's irradiance"
+    assert cli.main(["bake", str(hdri), "--out", str(out)]) == 0  # its own files now
