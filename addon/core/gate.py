@@ -11,7 +11,8 @@ written, every place a file will land is checked (``Gate.check``):
   names (ctlab wrote it and nobody changed it since); any other file, the user's, is refused
   in one line naming it, unless the user asked to overwrite (``force``: ``--force``, the
   Overwrite box), which still replaces only a regular file, never a link or a folder;
-- each name is one within the file system's limits (255 bytes, valid in its encoding);
+- each name is one within the file system's limits (255 bytes with the staging name's
+  additions, valid in its encoding), and no two differ by case alone;
 - no input is an output (core.files.refuse_overwrite).
 
 Then every file is staged and renamed into place together (core.files.atomic_paths: whole or
@@ -68,16 +69,22 @@ def _what(mode: int) -> str:
     return "a file" if stat.S_ISREG(mode) else "a special file"
 
 
-def check_name(name: str, what: str) -> None:
-    """A name the file system takes: at most 255 bytes, valid in its encoding (a name read
-    from a non-UTF-8 file name holds surrogates), no separator, not . or .."""
+# A staged file's name adds ".", ".<pid>-<8 hex>.partial" to its own (core.files.staging_name)
+STAGING_RESERVE = 32
+MAX_OUTPUT_NAME_BYTES = MAX_NAME_BYTES - STAGING_RESERVE
+
+
+def check_name(name: str, what: str, limit: int = MAX_OUTPUT_NAME_BYTES) -> None:
+    """A name the file system takes, staged too: at most ``limit`` bytes (255 less the staging
+    name's additions), valid in its encoding (a name read from a non-UTF-8 file name holds
+    surrogates), no separator or NUL, not . or .."""
     try:
         size = len(os.fsencode(name))
         name.encode("utf-8")
     except UnicodeError:
         raise UserError(f"{what} {name!r} is not a valid file name (undecodable bytes)") from None
-    if size > MAX_NAME_BYTES or not name or name in (".", "..") or "/" in name or "\0" in name:
-        raise UserError(f"{what} {name[:60]!r} is not a valid file name (at most 255 bytes)")
+    if size > limit or not name or name in (".", "..") or "/" in name or "\0" in name:
+        raise UserError(f"{what} {name[:60]!r} is not a valid file name (at most {limit} bytes)")
 
 
 class Gate:
@@ -135,15 +142,17 @@ class Gate:
         rels = list(rels)
         for rel in rels:
             parts = Path(rel).parts
-            if not parts or Path(rel).is_absolute() or ".." in parts:
+            if not parts or Path(rel).is_absolute() or ".." in parts or Path(rel).as_posix() != rel:
                 raise ValueError(f"{rel!r} is not a path inside the folder")
             for part in parts:
                 check_name(part, "the output name")
+            if rel == RECORD:
+                raise UserError(f"an output may not be named {RECORD} (ctlab's record); rename it")
         files.refuse_overwrite(list(inputs), [self.root / r for r in rels] + [self.root / RECORD])
         seen = set()
         for rel in rels:
             parts = Path(rel).parts
-            key = os.path.normcase(rel)
+            key = rel.casefold()  # one file where the file system folds case (macOS, Windows)
             if key in seen:
                 raise UserError(f"two outputs would share {self.root / rel}; rename one")
             seen.add(key)
