@@ -21,8 +21,9 @@ record is updated after the renames: a process killed in between leaves files th
 not list, which a later run refuses rather than replaces, the safe side. An OSError becomes
 one line naming the path that failed, the output's or, while reading, the input's.
 
-The job folders have the same discipline in core/jobgraph/ownership.py (their files are
-recognised by their content: markers, logs, the plan); the cache its manifests
+The places themselves (``owned_folder``, ``owned_file``: absent, a real folder, a regular file
+ctlab recognises) are the job folders' too: core/jobgraph/ownership.py recognises their files
+by content (markers, logs, the plan) instead of a record. The cache has its manifests
 (core/cache.py)."""
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from pathlib import Path
 
 from . import files
 from .errors import UserError
-from .paths import MAX_NAME_BYTES
+from .paths import MAX_NAME_BYTES, kind
 
 RECORD = ".ctlab-written.json"
 _MARK = "Cook-Torrance Lab ownership record"
@@ -50,7 +51,29 @@ def _record_ok(data) -> bool:
     )
 
 
-def _lstat(path: Path):
+# --- places ctlab writes: absent, or what it wrote there, reached through real folders
+
+
+def describe(mode: int) -> str:
+    """What a file of this (lstat) mode is, with its article: "a link", "a folder", ..."""
+    return "a link" if stat.S_ISLNK(mode) else kind(mode) or "a file"
+
+
+@contextlib.contextmanager
+def os_errors(path):
+    """Any OSError in the block as one UserError line naming the file (core.files'
+    WRITE_ERRORS for the causes a user can remedy)."""
+    try:
+        yield
+    except OSError as exc:
+        name = exc.filename or path
+        cause = files.WRITE_ERRORS.get(exc.errno) or exc.strerror or str(exc)
+        raise UserError(f"cannot use {name}: {cause}; nothing was changed there") from None
+
+
+def lstat(path: Path):
+    """``os.lstat(path)``, or None when nothing stands there; a path below a file or one that
+    cannot be examined is one UserError line."""
     try:
         return os.lstat(path)
     except FileNotFoundError:
@@ -61,12 +84,35 @@ def _lstat(path: Path):
         raise UserError(f"cannot use {path}: {exc.strerror or exc}") from None
 
 
-def _what(mode: int) -> str:
-    if stat.S_ISLNK(mode):
-        return "a link"
-    if stat.S_ISDIR(mode):
-        return "a folder"
-    return "a file" if stat.S_ISREG(mode) else "a special file"
+def owned_folder(path: Path, what: str) -> None:
+    """``path``, where ctlab keeps ``what``, is absent or a real folder (not a link to one:
+    ctlab would write into a folder it did not choose); else one UserError line."""
+    st = lstat(Path(path))
+    if st is not None and (stat.S_ISLNK(st.st_mode) or not stat.S_ISDIR(st.st_mode)):
+        raise UserError(
+            f"{path} is {describe(st.st_mode)} where ctlab keeps {what}; "
+            "move it away (nothing was written)"
+        )
+
+
+def owned_file(path: Path, what: str, ours=None) -> None:
+    """``path``, where ctlab writes ``what``, is absent, or a regular file (not a link) that
+    ``ours(path)`` says ctlab wrote (None: any regular file, an output of the job itself);
+    a user's file, a link, a folder or a pipe is refused in one line before anything is
+    written, so it is never replaced or removed."""
+    st = lstat(Path(path))
+    if st is None:
+        return
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError(
+            f"{path} is {describe(st.st_mode)} where ctlab writes {what}; move it "
+            "away (nothing was written)"
+        )
+    if ours is not None and not ours(Path(path)):
+        raise UserError(
+            f"{path} is a file ctlab did not write, where it writes {what}; move it "
+            "away (nothing was written)"
+        )
 
 
 # A staged file's name adds ".", ".<pid>-<8 hex>.partial" to its own (core.files.staging_name)
@@ -103,7 +149,7 @@ class Gate:
         in the record's place that is not one is refused (it is the user's)."""
         if self._record is None:
             path = self.root / RECORD
-            st = _lstat(path)
+            st = lstat(path)
             if st is None:
                 self._record = {}
             else:
@@ -164,24 +210,14 @@ class Gate:
         self.record()  # a foreign file in the record's place is refused now
 
     def _folder(self, path: Path) -> None:
-        st = _lstat(path)
-        if st is not None and not stat.S_ISDIR(st.st_mode):
-            raise UserError(
-                f"{path} is {_what(st.st_mode)} where ctlab writes {self.what}; "
-                "move it away or choose another folder (nothing was written)"
-            )
+        owned_folder(path, self.what)
 
     def _file(self, rel: str) -> None:
+        """The place of ``rel`` is free, or holds ctlab's unchanged file (the record), or
+        the user's regular file and ``force``; a link, a folder or a pipe never."""
         path = self.root / rel
-        st = _lstat(path)
-        if st is None:
-            return
-        if not stat.S_ISREG(st.st_mode):
-            raise UserError(
-                f"{path} is {_what(st.st_mode)} where ctlab writes {self.what}; "
-                "move it away (nothing was written)"
-            )
-        if not self.force and not self.ours(rel):
+        owned_file(path, self.what)
+        if path.exists() and not self.force and not self.ours(rel):
             raise UserError(
                 f"{path} is a file ctlab did not write (or one changed since); it was left "
                 "alone: move it away, choose another folder, or overwrite it (--force, the "
@@ -222,11 +258,11 @@ class Gate:
         chain = [
             self.root.joinpath(*rel_parent.parts[: i + 1]) for i in range(len(rel_parent.parts))
         ]
-        if _lstat(self.root) is None:
+        if lstat(self.root) is None:
             self.root.mkdir(parents=True)
             made.append(self.root)
         for where in chain:
-            if _lstat(where) is None:
+            if lstat(where) is None:
                 where.mkdir()
                 made.append(where)
             self._folder(where)

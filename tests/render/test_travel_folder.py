@@ -62,7 +62,7 @@ def test_a_link_in_the_travel_folder_is_never_written_through(tmp_path, entry):
     folder = tmp_path / "shot_ctlab"
     folder.mkdir()
     (folder / entry.name).symlink_to(library)
-    with pytest.raises(UserError, match="is a link where ctlab writes"):
+    with pytest.raises(UserError, match="is a link where ctlab keeps"):
         travel._carry(entry, folder)
     assert list(library.iterdir()) == []
 

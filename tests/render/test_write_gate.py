@@ -116,7 +116,7 @@ def test_textures_as_a_link_is_refused_and_nothing_written_through_it(tmp_path, 
     (out / "textures").symlink_to(library)
     before, lib_before = _tree(out), _tree(library)
     for force in (False, True):
-        with pytest.raises(UserError, match="textures is a link where ctlab writes"):
+        with pytest.raises(UserError, match="textures is a link where ctlab keeps"):
             write_export(materials, files_, "materialx", out, "x", force=force)
     assert _tree(out) == before and _tree(library) == lib_before
 

@@ -5,79 +5,16 @@ a link, a folder or a pipe is refused in one line and left alone."""
 
 from __future__ import annotations
 
-import contextlib
 import os
-import stat
 from pathlib import Path
 
 from ..errors import UserError
-from ..files import WRITE_ERRORS
-from ..paths import kind, read_bytes
+from ..gate import describe, lstat, os_errors, owned_file, owned_folder  # noqa: F401
+from ..paths import read_bytes
 from .plan import TASKS_DIR, log_path, marker_path
 from .schema import is_marker, safe_folder
 
 LOG_MARK = "# ctlab task log"
-
-
-def describe(mode: int) -> str:
-    """What a file of this (lstat) mode is, with its article: "a link", "a folder", ..."""
-    return "a link" if stat.S_ISLNK(mode) else kind(mode) or "a file"
-
-
-@contextlib.contextmanager
-def os_errors(path):
-    """Any OSError in the block as one UserError line naming the file (core.files'
-    WRITE_ERRORS for the causes a user can remedy)."""
-    try:
-        yield
-    except OSError as exc:
-        name = exc.filename or path
-        cause = WRITE_ERRORS.get(exc.errno) or exc.strerror or str(exc)
-        raise UserError(f"cannot use {name}: {cause}; nothing was changed there") from None
-
-
-def lstat(path: Path):
-    """``os.lstat(path)``, or None when nothing stands there; a path below a file or one that
-    cannot be examined is one UserError line."""
-    try:
-        return os.lstat(path)
-    except FileNotFoundError:
-        return None
-    except NotADirectoryError:
-        raise UserError(f"{path} lies below a file; move it away or choose another --out") from None
-    except OSError as exc:
-        raise UserError(f"cannot use {path}: {exc.strerror or exc}") from None
-
-
-def owned_folder(path: Path, what: str) -> None:
-    """``path``, where ctlab keeps ``what``, is absent or a real folder (not a link to one:
-    ctlab would write into a folder it did not choose); else one UserError line."""
-    st = lstat(Path(path))
-    if st is not None and (stat.S_ISLNK(st.st_mode) or not stat.S_ISDIR(st.st_mode)):
-        raise UserError(
-            f"{path} is {describe(st.st_mode)} where ctlab keeps {what}; "
-            "move it away (nothing was written)"
-        )
-
-
-def owned_file(path: Path, what: str, ours=None) -> None:
-    """``path``, where ctlab writes ``what``, is absent, or a regular file (not a link) that
-    ``ours(path)`` says ctlab wrote (None: any regular file, an output of the job itself);
-    a user's file, a link, a folder or a pipe is refused in one line before anything is
-    written, so it is never replaced or removed."""
-    st = lstat(Path(path))
-    if st is None:
-        return
-    if not stat.S_ISREG(st.st_mode):
-        raise UserError(
-            f"{path} is {describe(st.st_mode)} where ctlab writes {what}; move it "
-            "away (nothing was written)"
-        )
-    if ours is not None and not ours(Path(path)):
-        raise UserError(
-            f"{path} is a file ctlab did not write, where it writes {what}; move it "
-            "away (nothing was written)"
-        )
 
 
 def check_folders(job_dir: Path, folders, what: str) -> None:
