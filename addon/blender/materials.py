@@ -57,6 +57,38 @@ def _surface_values(nt, per_object: bool, albedo, metallic, smoothness, albedo_i
     return albedo_out, metallic_out, smooth_out
 
 
+def _normal_map(nt, image, strength: float = 1.0):
+    """A tangent-space normal map (the UV map's tangents, OpenGL convention) through
+    Blender's Normal Map node: its Normal output, the same for either implementation and for
+    Principled."""
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    if image.colorspace_settings.name != "Non-Color":
+        image.colorspace_settings.name = "Non-Color"
+    tex.location = (-700, -300)
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    nmap.inputs["Strength"].default_value = strength
+    nmap.location = (-450, -300)
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    return nmap.outputs["Normal"]
+
+
+def map_uv(nt, scale) -> None:
+    """Every Image Texture node of ``nt`` reads the UV map scaled by ``scale`` (a Mapping
+    node: the sphere matrix repeats its textures, core/textures.py UV_SCALE)."""
+    textures = [n for n in nt.nodes if n.bl_idname == "ShaderNodeTexImage"]
+    if not textures:
+        return
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    coords.location = (-1100, 0)
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.location = (-900, 0)
+    mapping.inputs["Scale"].default_value = scale
+    nt.links.new(coords.outputs["UV"], mapping.inputs["Vector"])
+    for tex in textures:
+        nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+
+
 def _connect_or_set(nt, value, sock):
     if isinstance(value, bpy.types.NodeSocket):
         nt.links.new(value, sock)
@@ -75,10 +107,11 @@ def model_material(
     smoothness=0.5,
     albedo_image=None,
     normal_map=None,
+    normal_strength: float = 1.0,
 ) -> bpy.types.Material:
     """A material whose surface is the model (``impl``: "osl" or "nodes") emitting the chosen
     view, with constant or per-object surface inputs, an optional albedo texture and
-    tangent-space normal map, and the given options and lighting."""
+    tangent-space normal map (of ``normal_strength``), and the given options and lighting."""
     mat = _new_material(name)
     mat.cycles.emission_sampling = 'NONE'  # a view, not a light: never sample it as a lamp
     nt = mat.node_tree
@@ -88,12 +121,8 @@ def model_material(
     for key, value in zip(("albedo", "metallic", "smoothness"), values):
         _connect_or_set(nt, value, model_node.surface_input(node, key))
     if normal_map is not None:
-        tex = nt.nodes.new("ShaderNodeTexImage")
-        tex.image = normal_map
-        tex.image.colorspace_settings.name = "Non-Color"
-        nmap = nt.nodes.new("ShaderNodeNormalMap")
-        nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
-        nt.links.new(nmap.outputs["Normal"], model_node.surface_input(node, "normal"))
+        normal = _normal_map(nt, normal_map, normal_strength)
+        nt.links.new(normal, model_node.surface_input(node, "normal"))
     model_node.link_geometry_normal(nt, node)
     model_node.set_options(node, options or ModelOptions())
     model_node.set_lighting(node, lighting or Lighting())
@@ -108,9 +137,12 @@ def principled_material(
     smoothness=0.5,
     distribution="MULTI_GGX",
     albedo_image=None,
+    normal_map=None,
+    normal_strength: float = 1.0,
 ) -> bpy.types.Material:
     """docs/model.md, "The comparison with Principled BSDF": Base Color = albedo, Metallic =
-    metallic, Roughness = 1 - smoothness, IOR 1.5, Specular IOR Level 0.5, Multiscatter GGX."""
+    metallic, Roughness = 1 - smoothness, IOR 1.5, Specular IOR Level 0.5, Multiscatter GGX;
+    the normal map through the same Normal Map node as the model's (``_normal_map``)."""
     mat = _new_material(name)
     nt = mat.node_tree
     bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
@@ -125,6 +157,9 @@ def principled_material(
     )
     _connect_or_set(nt, albedo_s, bsdf.inputs["Base Color"])
     _connect_or_set(nt, metallic_s, bsdf.inputs["Metallic"])
+    if normal_map is not None:
+        nt.links.new(_normal_map(nt, normal_map, normal_strength), bsdf.inputs["Normal"])
+        mat.cycles.use_bump_map_correction = False
     if isinstance(smooth_s, bpy.types.NodeSocket):
         invert = nt.nodes.new("ShaderNodeMath")  # roughness = 1 - smoothness
         invert.operation = 'SUBTRACT'

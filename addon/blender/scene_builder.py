@@ -21,6 +21,7 @@ from .paths import resolve_hdri
 from ..core import env_importance, ibl_bake
 from ..core.hdri import load_hdri
 from ..core.model import Lighting, files_needed
+from ..core.textures import UV_SCALE
 from ..core.settings import (
     CAMERA_DISTANCE,
     TO_CAMERA,
@@ -166,19 +167,29 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
         tables,
         str(bake),
     )
+    textures = _texture_images(s)
     if s.shader == "principled":
         mat = materials.principled_material(
-            "Principled Matrix", per_object=True, distribution=s.principled_distribution
+            "Principled Matrix",
+            per_object=True,
+            distribution=s.principled_distribution,
+            **textures,
         )
     else:
         # shadow rays stop at the other spheres only where Principled's would
         mat = materials.model_material(
-            "Cook-Torrance Matrix", s.shader, s.model_options(), lighting, per_object=True
+            "Cook-Torrance Matrix",
+            s.shader,
+            s.model_options(),
+            lighting,
+            per_object=True,
+            **textures,
         )
         # the key light, the lights and the world inputs follow the scene's objects
         node = model_node.find(mat)
         model_node.add_drivers(mat.node_tree, node, sun, scene.world)
         scene_lights.sync_slots(mat.node_tree, node, light_objects)
+    materials.map_uv(mat.node_tree, UV_SCALE)
     mat[TAG] = True
 
     mesh = bpy.data.meshes.new("Cook-Torrance Lab Sphere")
@@ -200,12 +211,29 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
     return describe(s, hdri)
 
 
+def _texture_images(s) -> dict:
+    """The settings' albedo texture and normal map as images (core/textures.py), for
+    materials.model_material and principled_material: the albedo in the colour space Blender
+    gives its file (sRGB for 8-bit images, linear for float ones), the normal map as data."""
+    found = {"normal_strength": s.normal_strength}
+    if s.albedo_texture:
+        found["albedo_image"] = bpy.data.images.load(s.albedo_texture, check_existing=True)
+    if s.normal_map:
+        found["normal_map"] = bpy.data.images.load(s.normal_map, check_existing=True)
+    return found
+
+
 def _sphere_mesh(mesh: bpy.types.Mesh, radius: float, segments=96, rings=48) -> None:
-    """A smooth-shaded UV sphere fine enough that facets never show at matrix resolutions."""
+    """A smooth-shaded UV sphere fine enough that facets never show at matrix resolutions,
+    with the UV map Blender makes for a UV sphere (the textures' and the normal map's
+    tangents)."""
     import bmesh
 
     bm = bmesh.new()
-    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+    bm.loops.layers.uv.new("UVMap")
+    bmesh.ops.create_uvsphere(
+        bm, u_segments=segments, v_segments=rings, radius=radius, calc_uvs=True
+    )
     bm.to_mesh(mesh)
     bm.free()
     mesh.shade_smooth()

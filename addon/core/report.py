@@ -255,6 +255,34 @@ tr.all td { font-weight: 600; } pre { background: #f4f4f4; padding: 1em; }
 </style>"""
 
 
+def textures_section(textures: dict | None) -> str:
+    """The albedo texture and normal map the spheres wore (core/textures.py), shown small,
+    or "" when the job had none."""
+    from .textures import thumbnail_uri
+
+    shown = [
+        (label, textures.get(key))
+        for key, label in (("albedo_texture", "Albedo texture"), ("normal_map", "Normal map"))
+        if textures and textures.get(key)
+    ]
+    if not shown:
+        return ""
+    figures = "".join(
+        f"<figure><img src='{thumbnail_uri(path)}' alt='{html.escape(label)}' style='width:160px'>"
+        f"<figcaption>{html.escape(label)}: {html.escape(str(path))}</figcaption></figure>"
+        for label, path in shown
+    )
+    strength = textures.get("normal_strength", 1.0)
+    return (
+        "<h2>Textures: on</h2><p>Every sphere, the model's and Principled's alike, wears "
+        f"{' and '.join(label.lower() for label, _ in shown)} below (the UV sphere's UVs, "
+        "repeated twice around and once from pole to pole; the normal map in OpenGL "
+        f"convention through Blender's Normal Map node, strength {strength:g}). The term "
+        "views shade the perturbed normal.</p>"
+        f"<div class='row'>{figures}</div>"
+    )
+
+
 def _write(out_dir: Path, page: str) -> Path:
     """report.html, whole or not at all."""
     path = Path(out_dir) / "report.html"
@@ -332,6 +360,7 @@ def write_report(
             "sun",
             "model",
             "principled_distribution",
+            "textures",
             "blender",
         )
         if k in scene
@@ -361,6 +390,7 @@ def write_report(
 All renders use the same world HDRI and Sun; the Cook-Torrance renders are the OSL shader
 (docs/model.md), the reference is Blender's Principled BSDF path-traced by Cycles.</p>
 {_figures(*main)}
+{textures_section(scene.get("textures"))}
 <h2>Summary</h2>
 <p>{_summary(metrics)} Render times: {
         html.escape(', '.join(f'{k} {v:.1f} s' for k, v in timings.items()))

@@ -83,6 +83,11 @@ class MatrixSettings:
     # Scene lights (core.lights.Light, at most LIGHT_SLOTS) in place of the key Sun
     lights: tuple = ()
     lights_file: str = ""  # where they were read from (for scene.json)
+    # The seed's textures on every sphere (core/textures.py): an albedo texture in place of
+    # ``albedo``, a tangent-space normal map (OpenGL convention) and its strength
+    albedo_texture: str = ""
+    normal_map: str = ""
+    normal_strength: float = 1.0
 
     def __post_init__(self):
         self.validate()  # settings are checked once, when made
@@ -145,6 +150,11 @@ class MatrixSettings:
             raise UserError(f"metallic {self.metallic} out of range; use 0 to 1")
         if len(self.albedo) != 3 or not all(0.0 <= a <= 1.0 for a in self.albedo):
             raise UserError(f"albedo {self.albedo} out of range; use three values in [0, 1]")
+        if not (_finite32(self.normal_strength) and 0.0 <= self.normal_strength <= 10.0):
+            raise UserError(
+                f"normal strength {self.normal_strength} out of range; use 0 to 10 (Blender's "
+                "Normal Map node)"
+            )
         if len(self.lights) > LIGHT_SLOTS:
             raise UserError(f"{len(self.lights)} lights; the model shades at most {LIGHT_SLOTS}")
         self.model.validate()
@@ -208,6 +218,11 @@ def describe(s: MatrixSettings, hdri: str) -> dict:
         "hdri_rotation_deg": math.degrees(s.hdri_rotation),
         "shader": s.shader,
         "principled_distribution": s.principled_distribution,
+        "textures": {
+            "albedo_texture": s.albedo_texture,
+            "normal_map": s.normal_map,
+            "normal_strength": s.normal_strength,
+        },
         "rows": s.rows,
         "cols": s.cols,
         "model": s.model.as_dict(),

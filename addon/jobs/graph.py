@@ -26,7 +26,7 @@ from ..blender import renderer
 from ..blender.paths import resolve_hdri
 from ..core import ibl_bake, jobgraph
 from ..core.errors import Cancelled, UserError
-from ..core.files import PACKAGE_ROOT, check_writable
+from ..core.files import PACKAGE_ROOT, check_writable, sha256
 from ..core.hdri import file_hash, load_hdri
 from ..core.paths import input_file
 from ..core.settings import MatrixSettings, settings_from_dict, settings_to_dict
@@ -106,12 +106,22 @@ def task_content(settings: MatrixSettings, samples: int, env: dict) -> dict:
     hdri = resolve_hdri(settings.hdri)
     data["hdri"] = ""
     data.pop("lights_file", None)
-    return {
-        "settings": data,
-        "samples": samples,
-        "environment": env,
-        "inputs": {"hdri": _hdri_hash(hdri)},
-    }
+    inputs = {"hdri": _hdri_hash(hdri)}
+    for key in ("albedo_texture", "normal_map"):  # textures by content too, where given
+        if data.get(key):
+            inputs[key] = _file_hash(data[key], key.replace("_", " "))
+            data[key] = ""
+    return {"settings": data, "samples": samples, "environment": env, "inputs": inputs}
+
+
+def _file_hash(path, what: str) -> str:
+    """An input's content hash, through the path gate (as _hdri_hash)."""
+    path = input_file(path, what, missing=f"{what} not found: {path} (the plan names it)")
+    st = path.stat()
+    key = (str(path), st.st_size, st.st_mtime_ns)
+    if key not in _HASHES:
+        _HASHES[key] = sha256(path)
+    return _HASHES[key]
 
 
 def merge_outputs(job: str, spec: dict) -> tuple:
@@ -193,8 +203,12 @@ def _checked(job_dir: Path, plan: dict, task: dict) -> MatrixSettings:
     s = renders.get(task["folder"])
     content = None if s is None else task_content(s, plan["spec"]["samples"], environment())
     if s is not None and content["inputs"] != task.get("inputs", content["inputs"]):
+        changed = [k for k, v in content["inputs"].items() if task["inputs"].get(k) != v]
+        name = {"hdri": f"HDRI {resolve_hdri(s.hdri)}"}.get(
+            changed[0], f"{changed[0].replace('_', ' ')} {getattr(s, changed[0], '')}"
+        )
         raise UserError(
-            f"HDRI {resolve_hdri(s.hdri)} changed since the job was planned (its content "
+            f"{name} changed since the job was planned (its content "
             "hash differs); put the planned file back, or plan the job again into an "
             "empty folder"
         )

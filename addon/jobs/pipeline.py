@@ -115,8 +115,13 @@ def render_views(
 
 
 def job_inputs(settings: MatrixSettings) -> list:
-    """The files a render reads that a user gave (its HDRI, its lights file)."""
-    return [resolve_hdri(settings.hdri), settings.lights_file or None]
+    """The files a render reads that a user gave (its HDRI, its lights file, its textures)."""
+    return [
+        resolve_hdri(settings.hdri),
+        settings.lights_file or None,
+        settings.albedo_texture or None,
+        settings.normal_map or None,
+    ]
 
 
 def refuse_job_outputs(settings: MatrixSettings, out: Path, folders, names=()) -> None:

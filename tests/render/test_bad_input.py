@@ -231,6 +231,7 @@ CASE_MODULES = (
     "test_job_folder_input",
     "test_write_gate",
     "test_travel_folder",
+    "test_textures",
 )
 
 

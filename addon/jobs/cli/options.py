@@ -161,6 +161,27 @@ LIGHTS = Option(
 ALBEDO = Option(
     "--albedo", "R,G,B linear albedo (default: gold)", default=vector_text(model.MATRIX_ALBEDO)
 )
+ALBEDO_TEXTURE = Option(
+    "--albedo-texture",
+    "FILE: a colour image on every sphere in place of --albedo (sRGB unless the file is "
+    'float; docs/usage.md "Textures on the sphere matrix")',
+    default="",
+)
+NORMAL_MAP = Option(
+    "--normal-map",
+    "FILE: a tangent-space normal map on every sphere (OpenGL convention, green up, as "
+    "Blender's Normal Map node reads it)",
+    default="",
+)
+NORMAL_STRENGTH = Option(
+    "--normal-strength", "the normal map's strength (Blender's Normal Map node)", float, 1.0
+)
+TEXTURED = Option(
+    "--textured",
+    "the shipped texture pair (a brick wall, CC0) as --albedo-texture and --normal-map, "
+    "where those are not given",
+    bool,
+)
 IBL = Option(
     "--ibl",
     "indirect light: " + "|".join(model.IBL_MODES) + " (default: reference; split_sum for "
@@ -222,6 +243,10 @@ MATRIX_OPTIONS = (
     SUN_STRENGTH,
     LIGHTS,
     ALBEDO,
+    ALBEDO_TEXTURE,
+    NORMAL_MAP,
+    NORMAL_STRENGTH,
+    TEXTURED,
     IBL,
     G,
     DIFFUSE,

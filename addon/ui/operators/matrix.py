@@ -5,7 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
+from bpy.props import (
+    BoolProperty,
+    EnumProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    IntProperty,
+    StringProperty,
+)
 
 from ...blender import light_sync
 from ...blender.scene_builder import build_matrix, environment_files
@@ -72,6 +79,46 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
     view: EnumProperty(name="View", default="full", items=VIEW_ITEMS)
     ibl: EnumProperty(name="Indirect Light", default=IBL_MODES[0], items=_IBL_ITEMS)
     resolution: IntProperty(name="Resolution", default=512, min=16, max=4096, subtype='PIXEL')
+    seed_textures: BoolProperty(
+        name="Seed Textures",
+        default=False,
+        description="Put the shipped albedo texture and normal map (a brick wall, CC0) on "
+        "every sphere, as the seed's prefab had them, where none is chosen below",
+    )
+    albedo_texture: StringProperty(
+        name="Albedo Texture",
+        subtype='FILE_PATH',
+        default="",
+        description="A colour image on every sphere in place of the albedo",
+    )
+    normal_map: StringProperty(
+        name="Normal Map",
+        subtype='FILE_PATH',
+        default="",
+        description="A tangent-space normal map on every sphere (OpenGL convention, green up)",
+    )
+    normal_strength: FloatProperty(name="Normal Strength", default=1.0, min=0.0, max=10.0)
+
+    def _textures(self) -> dict:
+        """The chosen textures, checked (core/textures.py); warnings reported."""
+        from ...core.textures import check_texture, seed_pair
+
+        albedo = bpy.path.abspath(self.albedo_texture) if self.albedo_texture else ""
+        normal = bpy.path.abspath(self.normal_map) if self.normal_map else ""
+        if self.seed_textures:
+            seed_albedo, seed_normal = seed_pair()
+            albedo, normal = albedo or seed_albedo, normal or seed_normal
+        found = {"normal_strength": self.normal_strength}
+        for key, path, what in (
+            ("albedo_texture", albedo, "albedo texture"),
+            ("normal_map", normal, "normal map"),
+        ):
+            if path:
+                info = check_texture(path, what, normal=key == "normal_map")
+                if info.warning:
+                    self.report({'WARNING'}, info.warning)
+                found[key] = info.path
+        return found
 
     def execute(self, context):
         ibl = indirect_light(self.shader, self.ibl) if self.shader != "principled" else self.ibl
@@ -90,6 +137,7 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
                 width=self.resolution,
                 height=self.resolution,
                 model=ModelOptions(view=self.view, ibl=ibl),
+                **self._textures(),
             )
             with _progress(context) as progress:
                 files = environment_files(settings, progress)
