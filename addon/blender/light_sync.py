@@ -18,7 +18,7 @@ from pathlib import Path
 
 import bpy
 
-from . import model_node, scene_lights, world_bake
+from . import model_node, owned, scene_lights, world_bake
 from .drivers import world_lighting
 from ..core import env_importance, ibl_bake
 from ..core.errors import UserError
@@ -251,14 +251,27 @@ def on_depsgraph_update(scene, depsgraph=None) -> None:
             print(f"Cook-Torrance Lab: {exc}")
 
 
+@bpy.app.handlers.persistent
+def on_load_post(*_args) -> None:
+    """The file just opened: the tables and bakes the add-on packed into it are checked
+    against the cache's files and packed again where their bytes were changed
+    (owned.check_packed_images; a sync checks them too, node_group._float_image)."""
+    for name in owned.check_packed_images():
+        print(f"Cook-Torrance Lab: the packed image {name!r} differed from its file; packed again")
+
+
 def register_handler() -> None:
     if on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update)
+    if on_load_post not in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.append(on_load_post)
 
 
 def unregister_handler() -> None:
     while on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(on_depsgraph_update)
+    while on_load_post in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(on_load_post)
     _seen.clear()
     _materials.clear()
     last_error.clear()

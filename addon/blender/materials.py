@@ -10,21 +10,23 @@ from __future__ import annotations
 
 import bpy
 
-from . import compat, model_node
+from . import compat, model_node, owned
 from ..core.model import DEFAULT_ALBEDO, Lighting, ModelOptions, perceptual_roughness
 
 # Per-object custom properties read by the materials (the surface inputs).
 PROP_ALBEDO = "ctlab_albedo"
 PROP_METALLIC = "ctlab_metallic"
 PROP_SMOOTHNESS = "ctlab_smoothness"
-GENERATED = "ctlab_generated"
+GENERATED = owned.LEGACY[owned.MATERIAL]  # the tag before blender/owned.py's mark
 
 
 def _new_material(name: str) -> bpy.types.Material:
-    old = bpy.data.materials.get(name)
-    if old is not None and old.get(GENERATED):
+    """A new material of ours (blender/owned.py), replacing our earlier one of that name; a
+    user's material of that name is kept (ours is then "<name>.001")."""
+    old = owned.find(bpy.data.materials, name, owned.MATERIAL)
+    if old is not None:
         bpy.data.materials.remove(old)
-    mat = bpy.data.materials.new(name)
+    mat = owned.new(bpy.data.materials, name, owned.MATERIAL)
     mat[GENERATED] = True
     compat.use_nodes(mat)
     mat.node_tree.nodes.clear()

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import bpy
 
-from ..core.correction_tables import correction_table_folder
 from ..core.errors import UserError
 from ..core.files import DATA_DIR
 from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, SCENE_VIEWS, VIEWS
@@ -32,12 +31,15 @@ from ..core.node_description import (
     load_description,
     parse,
 )
-from . import node_compiler
-from .node_compiler import BAKE_DIM, BAKE_FILE, CHAIN_INPUTS, MODEL_TABLE, Compiler, chain, closures
+from . import node_compiler, owned
+from .group_images import _float_image, set_bake, table_images  # noqa: F401 (their home)
+from .node_compiler import BAKE_DIM, BAKE_FILE, MODEL_TABLE  # noqa: F401 (their tags)
+from .node_compiler import CHAIN_INPUTS, Compiler, chain, closures
 
-TAG = "ctlab_node_group"
-LIGHT_GROUP = "ctlab_light_group"  # tags the per-light group
-CORRECTION_GROUP = "ctlab_correction_group"  # tags the correction group
+# The groups' tags, their roles (blender/owned.py): found by identity, never by name alone
+TAG = owned.NODE_GROUP
+LIGHT_GROUP = owned.LIGHT_GROUP  # tags the per-light group
+CORRECTION_GROUP = owned.CORRECTION_GROUP  # tags the correction group and its chain
 # The group's output of the residual albedo (core.model OSL_RESIDUAL), built where the
 # interface (core.model GROUP_OUTPUTS) has it
 RESIDUAL_OUTPUT = "Residual Albedo"
@@ -81,12 +83,14 @@ def _interface(group):
         group.interface.new_socket(name, in_out='OUTPUT', socket_type=SOCKET_TYPES[kind])
 
 
-def _tree(name: str, tag: str) -> bpy.types.ShaderNodeTree:
-    """The shader node tree of that name made by this add-on, emptied, or a new one."""
-    group = bpy.data.node_groups.get(name)
-    if group is None or group.bl_idname != "ShaderNodeTree":
-        group = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    group[tag] = True
+def _tree(name: str, role: str, tag: str = "") -> bpy.types.ShaderNodeTree:
+    """The add-on's shader node tree of that name and role (owned.find), emptied, or a new
+    one (named "<name>.001" where a user's block holds the name: a user's is never
+    rebuilt); tagged ``tag`` (the role's, by default) as before the mark."""
+    group = owned.find(bpy.data.node_groups, name, role, lambda g: g.bl_idname == "ShaderNodeTree")
+    if group is None:
+        group = owned.new(bpy.data.node_groups, name, role, "ShaderNodeTree")
+    group[tag or role] = True
     group.nodes.clear()
     group.interface.clear()
     return group
@@ -190,7 +194,7 @@ def build_chain_group(data: dict, name: str) -> bpy.types.ShaderNodeTree:
     """prefiltered(Level, Direction, Colour) as Emission closures behind Mix Shader nodes,
     a group of its own (tagged as the correction group, so that set_bake finds its
     lookups)."""
-    group = _tree(name, CORRECTION_GROUP)
+    group = _tree(name, owned.PREFILTERED_GROUP, CORRECTION_GROUP)
     group.description = (
         "The pre-filtered levels toward a direction at a fractional level, "
         "times a colour, as Emission closures (Cook-Torrance Lab)"
@@ -347,9 +351,14 @@ def cache_key(digest: str) -> str:
     return "node-group-{}-{}".format(digest, "_".join(str(v) for v in bpy.app.version))
 
 
-def _group_names(name: str) -> tuple:
-    """The group and the groups it holds, as build_group names them."""
-    return (name, f"{name} Light", f"{name} Correction", f"{name} Pre-filtered")
+def _group_roles(name: str) -> tuple:
+    """The group and the groups it holds, as build_group names them, with their roles."""
+    return (
+        (name, TAG),
+        (f"{name} Light", LIGHT_GROUP),
+        (f"{name} Correction", CORRECTION_GROUP),
+        (f"{name} Pre-filtered", owned.PREFILTERED_GROUP),
+    )
 
 
 def ensure_group() -> bpy.types.ShaderNodeTree:
@@ -361,21 +370,24 @@ def ensure_group() -> bpy.types.ShaderNodeTree:
     it) where it was built from the same sources: 0.05 s against 3-18 s to build its 1,271
     nodes (bench/results.md); else built, and put in the cache. A file holding an older
     group of ours is rebuilt in place, so that its materials keep it. An unusable cache
-    folder only costs the build."""
+    folder only costs the build. The groups are the add-on's own (blender/owned.py): a
+    user's group of one of their names is never used or rebuilt; ours takes "<name>.001"."""
     digest = source_digest()
     name = load_description()["group"]["name"]
-    group = bpy.data.node_groups.get(name)
-    if group is not None and group.get(TAG) and group.get(SOURCE_HASH) == digest:
+    roles = _group_roles(name)
+    group = owned.find(bpy.data.node_groups, name, TAG)
+    if group is not None and group.get(SOURCE_HASH) == digest:
         return group
-    free = not any(n in bpy.data.node_groups for n in _group_names(name))
+    free = not any(owned.find(bpy.data.node_groups, n, role) for n, role in roles)
     if free:
         appended = _append_cached(digest, name) or _append_shipped(digest, name)
         if appended is not None:
             return appended
     group = build_group()
     group[SOURCE_HASH] = digest
-    if free:
-        _store(digest, group)
+    groups = bpy.data.node_groups
+    if free and all(groups.get(n) == owned.find(groups, n, r) for n, r in roles):
+        _store(digest, group)  # under its own names, which _append looks for
     return group
 
 
@@ -405,11 +417,12 @@ def _append_cached(digest: str, name: str) -> bpy.types.ShaderNodeTree | None:
 
 
 def _append(path: Path, digest: str, name: str) -> bpy.types.ShaderNodeTree:
-    """The group ``name`` (with the groups it holds) appended from a .blend ctlab wrote."""
+    """The group ``name`` (with the groups it holds) appended from a .blend ctlab wrote;
+    Blender renames an appended group whose name a user's block holds ("<name>.001")."""
     with bpy.data.libraries.load(str(path), link=False) as (source, target):
         target.node_groups = [n for n in source.node_groups if n == name]
-    [group] = target.node_groups
-    if group.name != name or group.get(SOURCE_HASH) != digest or not group.get(TAG):
+    group = target.node_groups[0] if len(target.node_groups) == 1 else None
+    if group is None or group.get(SOURCE_HASH) != digest or not owned.is_ours(group, TAG):
         raise UserError(f"{path} does not hold the node group {name!r}")
     return group
 
@@ -425,70 +438,3 @@ def _store(digest: str, group: bpy.types.ShaderNodeTree) -> None:
         cache.build(cache_key(digest), fill)
     except UserError:
         pass  # no cache: the next process builds the group again
-
-
-def set_bake(group: bpy.types.ShaderNodeTree, folder) -> None:
-    """Point the group's texture nodes at a bake folder's files (core/ibl_bake.py), and the
-    scene transport's tables at theirs (``correction_table_folder``, once per cache)."""
-    folder = Path(folder)
-    trees, pending = [], [group]  # and the groups it holds: per-light, correction
-    while pending:
-        tree = pending.pop()
-        if tree not in trees:
-            trees.append(tree)
-            pending += [
-                n.node_tree
-                for n in tree.nodes
-                if n.bl_idname == "ShaderNodeGroup"
-                and n.node_tree is not None
-                and (n.node_tree.get(LIGHT_GROUP) or n.node_tree.get(CORRECTION_GROUP))
-            ]
-    nodes = [node for tree in trees for node in tree.nodes]
-    tables = correction_table_folder() if any(MODEL_TABLE in node for node in nodes) else None
-    for node in nodes:
-        # unchanged values are not set again: every change re-syncs each material using
-        # the group (0.8 s a material, growing with the materials, where a conversion set
-        # the shared group's bake again for each)
-        if MODEL_TABLE in node:
-            image = _float_image(tables / f"{node[MODEL_TABLE]}.exr")
-            if node.image != image:
-                node.image = image
-        if BAKE_FILE not in node:
-            continue
-        path = folder / f"{node[BAKE_FILE]}.exr"
-        if not path.is_file():
-            raise UserError(f"the bake folder {folder} has no {path.name}; bake again")
-        image = _float_image(path)
-        if BAKE_DIM in node:
-            size = float(image.size[0 if node[BAKE_DIM] == "width" else 1])
-            if node.outputs[0].default_value != size:
-                node.outputs[0].default_value = size
-        elif node.image != image:
-            node.image = image
-
-
-def table_images() -> set:
-    """The images the model's groups read (their tables and bakes, set_bake), in any file:
-    the add-on makes them again from its cache when a material syncs."""
-    return {
-        node.image
-        for group in bpy.data.node_groups
-        if group.get(TAG) or group.get(LIGHT_GROUP) or group.get(CORRECTION_GROUP)
-        for node in group.nodes
-        if (BAKE_FILE in node or MODEL_TABLE in node) and getattr(node, "image", None)
-    }
-
-
-def _float_image(path: Path) -> bpy.types.Image:
-    """A baked file or table as an image, packed into the .blend (Image.pack): the file
-    renders the same on a machine without the add-on or its cache (a render farm), since
-    Cycles and EEVEE read a packed image's own bytes. The image keeps the cache path, which
-    need not exist there."""
-    image = bpy.data.images.load(str(path), check_existing=True)
-    if image.colorspace_settings.name != "Non-Color":  # setting it reloads the image
-        image.colorspace_settings.name = "Non-Color"
-    if image.use_half_precision:
-        image.use_half_precision = False  # EEVEE: keep 32-bit floats on the GPU
-    if image.packed_file is None:
-        image.pack()
-    return image

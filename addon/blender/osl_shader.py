@@ -30,11 +30,15 @@ def ensure_oslquery() -> None:
 
 
 def shader_text(path: Path = SHADER_FILE, name: str = TEXT_NAME) -> bpy.types.Text:
-    """The text datablock holding a shader's source, refreshed from its file when it differs."""
+    """The add-on's text datablock holding a shader's source (blender/owned.py: a user's
+    text of that name is never written; ours is then "<name>.001"), refreshed from its file
+    when it differs."""
+    from . import owned
+
     text_source = source(path)
-    text = bpy.data.texts.get(name)
+    text = owned.find(bpy.data.texts, name, owned.OSL_TEXT)
     if text is None:
-        text = bpy.data.texts.new(name)
+        text = owned.new(bpy.data.texts, name, owned.OSL_TEXT)
     if text.as_string() != text_source:
         text.from_string(text_source)
     return text

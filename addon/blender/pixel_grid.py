@@ -14,7 +14,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from . import renderer
+from . import owned, renderer
 
 TAG = "ctlab_pixel_grid"
 CAMERA_HEIGHT = 10.0
@@ -53,15 +53,16 @@ def build(scene: bpy.types.Scene, width: int, height: int) -> bpy.types.Object:
 
 def data_image(name: str, data: np.ndarray) -> bpy.types.Image:
     """A float image holding ``data`` (H, W, 3 or 4; row 0 the top, as the render's), read
-    without colour conversion. An image of that name is replaced."""
+    without colour conversion. An earlier data image of ours of that name is replaced, a
+    user's image of that name never (blender/owned.py: ours is then "<name>.001")."""
     data = np.asarray(data, dtype=np.float32)
     h, w = data.shape[:2]
     rgba = np.ones((h, w, 4), dtype=np.float32)
     rgba[..., : data.shape[2]] = data
-    old = bpy.data.images.get(name)
+    old = owned.find(bpy.data.images, name, owned.DATA_IMAGE)
     if old is not None:
         bpy.data.images.remove(old)
-    image = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
+    image = owned.new(bpy.data.images, name, owned.DATA_IMAGE, w, h, alpha=True, float_buffer=True)
     image.colorspace_settings.name = "Non-Color"
     image.alpha_mode = 'NONE'
     image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())  # Blender: bottom row first

@@ -16,7 +16,7 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
-from . import compat, materials, model_node, scene_lights
+from . import compat, materials, model_node, owned, scene_lights
 from .paths import resolve_hdri
 from ..core import env_importance, ibl_bake
 from ..core.hdri import load_hdri
@@ -31,7 +31,7 @@ from ..core.settings import (
     ortho_scale,
 )
 
-TAG = "ctlab_matrix"
+TAG = owned.MATRIX  # the role of the matrix's world and collection (blender/owned.py)
 COLLECTION = "Cook-Torrance Matrix"
 
 
@@ -47,8 +47,8 @@ def remove_matrix(scene: bpy.types.Scene) -> None:
                 if block.name in collection and collection[block.name] == block:
                     collection.remove(block)
                     break
-    coll = bpy.data.collections.get(COLLECTION)
-    if coll is not None and coll.get(TAG) and not coll.objects:
+    coll = owned.find(bpy.data.collections, COLLECTION, TAG)
+    if coll is not None and not coll.objects:
         bpy.data.collections.remove(coll)
 
 
@@ -58,8 +58,10 @@ def _tagged(obj):
 
 
 def build_world(s: MatrixSettings, image: bpy.types.Image) -> bpy.types.World:
+    """The matrix's world, ours (blender/owned.py): a user's world of its name is never
+    reused or cleared; ours is then "Cook-Torrance Lab World.001"."""
     name = "Cook-Torrance Lab World"
-    world = bpy.data.worlds.get(name) or bpy.data.worlds.new(name)
+    world = owned.find(bpy.data.worlds, name, TAG) or owned.new(bpy.data.worlds, name, TAG)
     world[TAG] = True
     compat.use_nodes(world)
     nt = world.node_tree
@@ -115,9 +117,9 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
     tables, bake = files
 
     remove_matrix(scene)
-    coll = bpy.data.collections.get(COLLECTION)
+    coll = owned.find(bpy.data.collections, COLLECTION, TAG)  # a user's of its name: never
     if coll is None:
-        coll = bpy.data.collections.new(COLLECTION)
+        coll = owned.new(bpy.data.collections, COLLECTION, TAG)
         coll[TAG] = True
     if coll.name not in scene.collection.children:
         scene.collection.children.link(coll)

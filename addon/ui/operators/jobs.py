@@ -67,13 +67,16 @@ def _start_tick() -> None:
 
 
 def show_plot(path: Path) -> bpy.types.Image:
-    """The plot's PNG as the image PLOT_IMAGE (reloaded when it exists), shown in every open
-    Image Editor."""
+    """The plot's PNG as the add-on's image PLOT_IMAGE (reloaded when it exists), shown in
+    every open Image Editor. A user's image of that name is never changed (blender/owned.py:
+    ours is then "Cook-Torrance BRDF Plot.001")."""
+    from ...blender import owned
+
     if not Path(path).is_file():
         raise OSError(f"{path} does not exist")
-    image = bpy.data.images.get(PLOT_IMAGE)
+    image = owned.find(bpy.data.images, PLOT_IMAGE, owned.PLOT_IMAGE)
     if image is None:
-        image = bpy.data.images.load(str(path))
+        image = owned.mark(bpy.data.images.load(str(path)), owned.PLOT_IMAGE)
         image.name = PLOT_IMAGE
     else:
         if image.packed_file is not None:  # packed by the user: show the new file
