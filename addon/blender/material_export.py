@@ -13,14 +13,15 @@ UserError (one line); a packed image is written out from the file's data.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import bpy
 
 from . import model_node
 from ..core.errors import UserError
 from ..core.export.network import COLORSPACES, SURFACE_KEYS, Material, Texture
-from ..core.paths import safe_name
+from ..core.export.network import export_names, texture_name, utf8_text
 
 
 # A packed image without a file name gets its format's extension.
@@ -37,35 +38,55 @@ class TextureFile:
     data: bytes = b""
 
 
-def _image_file(image: bpy.types.Image, mat_name: str, files: dict) -> str:
-    """The image's name inside the export folder (textures/NAME), registered in ``files``."""
-    for name, f in files.items():
-        if f.get("image") == image.name:
-            return name
+def _display(path: str) -> str:
+    """A path for a message: undecodable bytes (a non-UTF-8 file name) as U+FFFD."""
+    return utf8_text(path)
+
+
+def _library(id_) -> str:
+    """The library .blend a linked data-block comes from, as the file names it ("" local)."""
+    return utf8_text(id_.library.filepath) if id_.library is not None else ""
+
+
+def _image_file(image: bpy.types.Image, mat, files: dict) -> str:
+    """The image's name inside the export folder (textures/NAME), registered in ``files``,
+    which is keyed by the image data-block (a local image and one linked from a library may
+    share a name): a bounded ASCII name, unique without case (network.texture_name)."""
+    key = image.as_pointer()
+    if key in files:
+        return files[key]["file"].name
+    who = f"image {image.name_full!r} of material {mat.name_full!r}"
     packed = image.packed_file
     path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
-    ext = os.path.splitext(path)[1] or EXTENSIONS.get(image.file_format, ".png")
-    stem = safe_name(os.path.splitext(os.path.basename(path))[0] or image.name, "texture")
-    name, i = f"textures/{stem}{ext}", 1
-    while name in files:
-        i += 1
-        name = f"textures/{stem}_{i}{ext}"
+    if image.source != 'FILE' and packed is None:
+        raise UserError(
+            f"{who} is not a single image file ({image.source.lower()}); the export carries "
+            "image files only"
+        )
+    if packed is None and (not path or not os.path.isfile(path)):
+        raise UserError(
+            f"{who}: its file is missing ({_display(path) or 'no path'}); find it (File > "
+            "External Data > Find Missing Files) or pack it, and save"
+        )
+    if packed is None and utf8_text(path) != path:
+        # The export reads its file by name (OpenImageIO takes UTF-8 names only) and records
+        # it as an input: a name of undecodable bytes is refused, never half-read
+        raise UserError(
+            f"{who}: its file name is not valid UTF-8 ({_display(path)}); rename the file (or "
+            "pack the image: File > External Data > Pack Resources), and save"
+        )
+    stem, ext = os.path.splitext(os.path.basename(path))
+    used = {_fold_name(f["file"].name) for f in files.values()}
+    name = texture_name(stem or image.name, ext, EXTENSIONS.get(image.file_format, ".png"), used)
     if packed is not None:
-        files[name] = {"image": image.name, "file": TextureFile(name, data=bytes(packed.data))}
-    elif image.source != 'FILE':
-        raise UserError(
-            f"image {image.name!r} of material {mat_name!r} is not a single image file "
-            f"({image.source.lower()}); the export carries image files only"
-        )
-    elif not path or not os.path.isfile(path):
-        raise UserError(
-            f"image {image.name!r} of material {mat_name!r}: its file is missing "
-            f"({path or 'no path'}); find it (File > External Data > Find Missing Files) "
-            "or pack it, and save"
-        )
+        files[key] = {"file": TextureFile(name, data=bytes(packed.data))}
     else:
-        files[name] = {"image": image.name, "file": TextureFile(name, source=path)}
+        files[key] = {"file": TextureFile(name, source=path)}
     return name
+
+
+def _fold_name(name: str) -> str:
+    return name.casefold()
 
 
 def _colorspace(image: bpy.types.Image) -> str:
@@ -102,7 +123,7 @@ def _texture(mat, key: str, sock, files: dict, notes: list) -> Texture | None:
             "cannot carry; the socket's own value is written"
         )
         return None
-    name = _image_file(src.image, mat.name, files)
+    name = _image_file(src.image, mat, files)
     return Texture(name, _colorspace(src.image), invert, strength)
 
 
@@ -114,7 +135,7 @@ def read_material(mat: bpy.types.Material, node, files: dict, notes: list) -> Ma
             textures[key] = tex
     objects = tuple(
         sorted(
-            o.name
+            o.name_full  # a linked object's with its library: "Cube [props.blend]"
             for o in bpy.data.objects
             if any(slot.material == mat for slot in getattr(o, "material_slots", ()))
         )
@@ -130,16 +151,28 @@ def read_material(mat: bpy.types.Material, node, files: dict, notes: list) -> Ma
         units=model_node.get_option(node, "units"),
         textures=textures,
         objects=objects,
+        library=_library(mat),
     )
 
 
 def read_materials(materials=None) -> tuple:
     """(materials, texture files, notes) for the given materials (default: every material
-    of the file that uses the model, in name order)."""
+    of the file that uses the model, in the order of (name, library): a local material and
+    one linked from a library may share a name; a library whose file is missing is refused,
+    since its materials cannot be read). Each material carries its names in the export
+    (network.export_names over all of them)."""
     if materials is None:
-        found = sorted(model_node.model_materials(), key=lambda mn: mn[0].name)
+        from .user_blend import check_libraries
+
+        check_libraries(Path(bpy.data.filepath or "this file"))
+        found = sorted(model_node.model_materials(), key=lambda mn: _order(mn[0]))
     else:
         found = [(m, model_node.find(m)) for m in materials if model_node.find(m) is not None]
     files, notes = {}, []
     out = [read_material(mat, node, files, notes) for mat, node in found]
+    out = [replace(m, names=n) for m, n in zip(out, export_names(out))]
     return out, [f["file"] for f in files.values()], notes
+
+
+def _order(mat) -> tuple:
+    return (mat.name, _library(mat))

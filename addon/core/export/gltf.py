@@ -4,15 +4,23 @@ packed into one image as glTF wants them, and what glTF cannot carry in extras."
 
 from __future__ import annotations
 
-from .network import Material, not_carried, valid_name
+from .network import DIFFUSE_SCALE, Material, export_names, not_carried, utf8_text
 
 
-def metallic_roughness_name(mat: Material) -> str | None:
+def metallic_roughness_name(mat: Material, materials=None) -> str | None:
     """The glTF metallic-roughness image a material needs (textures/NAME), or None: glTF
-    packs roughness in G and metallic in B of one image (``metallic_roughness_pixels``)."""
-    if "metallic" not in mat.textures and "smoothness" not in mat.textures:
-        return None
-    return f"textures/{valid_name(mat.name, set())}_metallic_roughness.png"
+    packs roughness in G and metallic in B of one image (``metallic_roughness_pixels``).
+    Its name is unique among the materials exported with it (``network.export_names``): from
+    ``materials`` when given (``mat`` one of them), else the names read with the material
+    (``mat.names``, blender/material_export.py), else its own alone."""
+    if materials is not None:
+        materials = list(materials)
+        for other, names in zip(materials, export_names(materials)):
+            if other is mat:
+                return names.metallic_roughness
+    if mat.names is not None:
+        return mat.names.metallic_roughness
+    return export_names([mat])[0].metallic_roughness
 
 
 def metallic_roughness_pixels(metallic, smoothness, invert: bool):
@@ -44,22 +52,24 @@ def _f7(x) -> float:
     return float(f"{float(x):.7g}")
 
 
-def gltf_material(mat: Material, texture_index) -> dict:
+def gltf_material(mat: Material, texture_index, packed=None) -> dict:
     """glTF's core material for the model's values: baseColorFactor = albedo, metallicFactor
     = metallic, roughnessFactor = 1 - smoothness (glTF's roughness is perceptual, squared to
     GGX's alpha like the model's pr); the albedo, normal and metallic-roughness textures (a
     factor is 1 where its texture holds the values). ``texture_index(file)`` gives a
-    texture's index in the file. The switches glTF cannot carry go to extras."""
+    texture's index in the file; ``packed`` the material's metallic-roughness image
+    (``metallic_roughness_name``). The switches glTF cannot carry go to extras."""
     pbr = {
         "baseColorFactor": [_f7(c) for c in mat.albedo[:3]] + [1.0],
         "metallicFactor": _f7(mat.metallic),
         "roughnessFactor": _f7(1.0 - float(mat.smoothness)),
     }
-    out = {"name": mat.name, "pbrMetallicRoughness": pbr}
+    out = {"name": utf8_text(mat.name), "pbrMetallicRoughness": pbr}
     if "albedo" in mat.textures:
         pbr["baseColorFactor"] = [1.0, 1.0, 1.0, 1.0]
         pbr["baseColorTexture"] = {"index": texture_index(mat.textures["albedo"].file)}
-    packed = metallic_roughness_name(mat)
+    if packed is None:
+        packed = metallic_roughness_name(mat)
     if packed is not None:
         pbr["metallicRoughnessTexture"] = {"index": texture_index(packed)}
         if "metallic" in mat.textures:
@@ -80,20 +90,27 @@ def gltf_material(mat: Material, texture_index) -> dict:
             "not_carried": gltf_not_carried(mat),
         }
     }
+    if mat.library:
+        out["extras"]["cook_torrance_lab"]["library"] = utf8_text(mat.library)
     return out
 
 
 def gltf_not_carried(mat: Material) -> list:
     """What glTF's core material (GGX, height-correlated Smith, Schlick F, Lambert diffuse,
-    F0 0.04 with a (1 - F) weighted diffuse) leaves out of this material."""
+    F0 0.04 with a (1 - F) weighted diffuse) leaves out of this material: always the model's
+    diffuse scale (docs/model.md: diffColor = albedo 0.96 (1 - metallic), Unity's constant
+    energy split, where glTF weights its Lambert by 1 - F), so no material is exact in glTF."""
     out = not_carried(mat)
     if mat.diffuse_model != "lambert":
         out.append("Burley (Disney) diffuse (glTF's diffuse is Lambert)")
+    out.append(f"the diffuse scale {DIFFUSE_SCALE:g} (glTF weights its Lambert diffuse by 1 - F)")
     return out
 
 
 def gltf_document(materials: list) -> dict:
-    """A minimal glTF 2.0 file holding the materials (no meshes)."""
+    """A minimal glTF 2.0 file holding the materials (no meshes); their packed images named
+    all at once (``network.export_names``)."""
+    materials = list(materials)
     images, textures, index = [], [], {}
 
     def texture_index(file: str) -> int:
@@ -105,7 +122,10 @@ def gltf_document(materials: list) -> dict:
 
     doc = {
         "asset": {"version": "2.0", "generator": "Cook-Torrance Lab (ctlab export)"},
-        "materials": [gltf_material(m, texture_index) for m in materials],
+        "materials": [
+            gltf_material(m, texture_index, n.metallic_roughness)
+            for m, n in zip(materials, export_names(materials))
+        ],
     }
     if images:
         doc["images"], doc["textures"] = images, textures

@@ -5,15 +5,27 @@ Pure Python (xml.etree): writing needs no MaterialX."""
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 
 from .network import NODEDEF_INPUTS, Input, Material, exact, fmt_float, interface_values
-from .network import model_graph, texture_nodes, valid_name
+from .network import label, model_graph, texture_nodes, utf8_text, valid_name
 
 MATERIALX_VERSION = "1.39"
 NODE = "cook_torrance_lab"
 NODEDEF = "ND_cook_torrance_lab_surfaceshader"
 NODEGRAPH = "NG_cook_torrance_lab_surfaceshader"
+
+
+# Characters XML 1.0 cannot hold, even escaped (control characters but tab, newline and
+# carriage return; surrogates; U+FFFE and U+FFFF)
+_NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(text) -> str:
+    """A user's text as an XML attribute can hold it: undecodable bytes as U+FFFD, characters
+    XML 1.0 forbids as U+FFFD (ElementTree escapes the rest: quotes, <, &, newlines)."""
+    return _NOT_XML.sub("\ufffd", utf8_text(text))
 
 
 def mtlx_value(type_: str, value) -> str:
@@ -25,7 +37,7 @@ def mtlx_value(type_: str, value) -> str:
         return str(int(value))
     if type_ == "boolean":
         return "true" if value else "false"
-    return str(value)
+    return xml_text(value)
 
 
 def _mtlx_input(parent, inp: Input, prefix: str = ""):
@@ -49,7 +61,12 @@ def mtlx_document(mat: Material) -> str:
     root.append(
         ET.Comment(
             " Cook-Torrance Lab: Unity's Standard Cook-Torrance BRDF (docs/model.md). "
-            + ("Exact: " if exact(mat) else "Closest graph: ")
+            + (
+                "Exact in Cycles/OSL closures (MaterialX's reference GLSL adds GGX energy "
+                "compensation to generalized_schlick_bsdf): "
+                if exact(mat)
+                else "Closest graph: "
+            )
             + f"G {mat.g_model}, diffuse {mat.diffuse_model}, energy {mat.energy}. "
         )
     )
@@ -76,7 +93,7 @@ def mtlx_document(mat: Material) -> str:
             _mtlx_input(e, inp)
     ET.SubElement(ng, "output", name="out", type="surfaceshader", nodename="surface")
 
-    used = {NODEDEF, NODEGRAPH}
+    used = {NODEDEF.casefold(), NODEGRAPH.casefold()}  # valid_name's folded names
     name = valid_name(mat.name, used)
     tex_nodes, feeds = texture_nodes(mat)
     graph_name = valid_name(f"{name}_textures", used) if tex_nodes else None
@@ -103,7 +120,9 @@ def mtlx_document(mat: Material) -> str:
         ET.SubElement(
             sh, "input", name="normal", type="vector3", nodegraph=graph_name, output="normal_out"
         )
-    sm = ET.SubElement(root, "surfacematerial", name=name, type="material")
+    sm = ET.SubElement(
+        root, "surfacematerial", name=name, type="material", doc=xml_text(label(mat))
+    )
     ET.SubElement(sm, "input", name="surfaceshader", type="surfaceshader", nodename=shader)
     ET.indent(root, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

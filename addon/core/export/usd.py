@@ -4,10 +4,10 @@ to prims named like the objects. Pure Python: a ``.usda`` text, no pxr."""
 
 from __future__ import annotations
 
-import json
+import unicodedata
 
-from .network import Input, Material, Node, exact, interface_values, model_graph
-from .network import not_carried, texture_nodes, valid_name
+from .network import EXACT, Input, Material, Node, exact, export_names, interface_values
+from .network import label, model_graph, not_carried, texture_nodes, utf8_text, valid_name
 from .materialx import mtlx_value
 
 
@@ -46,6 +46,37 @@ USD_TYPES = {
 }
 
 
+# USD's text escapes (pxr's TfEscapeString reads them back): a backslash, the quote and the
+# control characters; any other character, non-ASCII included, is written as it is (UTF-8).
+_ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def usd_string(text) -> str:
+    """``text`` as a USD string literal (double quotes), read back exactly by USD's parser:
+    a backslash, a quote, newline, carriage return and tab escaped, other control characters
+    (and DEL) as ``\\xHH``; undecodable bytes (a non-UTF-8 file name) as U+FFFD."""
+    out = []
+    for c in utf8_text(text):
+        if c in _ESCAPES:
+            out.append(_ESCAPES[c])
+        elif ord(c) < 0x20 or ord(c) == 0x7F:
+            out.append(f"\\x{ord(c):02x}")
+        else:
+            out.append(c)
+    return '"' + "".join(out) + '"'
+
+
+def usd_asset(path) -> str:
+    """An asset path in USD's text: ``@path@``, or ``@@@path@@@`` when it holds an ``@``
+    (``@@@`` inside escaped as ``\\@@@``); control characters (C0, DEL, C1), which no asset
+    path can hold, are dropped, undecodable bytes become U+FFFD; non-ASCII is written as it
+    is."""
+    text = "".join(c for c in utf8_text(path) if unicodedata.category(c) != "Cc")
+    if "@" not in text:
+        return "@" + text + "@"
+    return "@@@" + text.replace("@@@", "\\@@@") + "@@@"
+
+
 def _usd_value(type_: str, value) -> str:
     """A value in USD's text: tuples in parentheses, asset paths in @, strings quoted; the
     numbers and booleans as MaterialX writes them (``materialx.mtlx_value``)."""
@@ -54,8 +85,8 @@ def _usd_value(type_: str, value) -> str:
     if type_ in ("float", "integer", "boolean"):
         return mtlx_value(type_, value)
     if type_ == "filename":
-        return "@" + str(value).replace("@", "") + "@"
-    return json.dumps(str(value), ensure_ascii=False)
+        return usd_asset(value)
+    return usd_string(value)
 
 
 def usda_document(materials: list) -> str:
@@ -76,15 +107,20 @@ def usda_document(materials: list) -> str:
         'def Scope "Materials"',
         "{",
     ]
-    used, paths = set(), {}
-    for mat in materials:
-        name = valid_name(mat.name, used)
-        paths[mat.name] = f"/Materials/{name}"
+    materials = list(materials)
+    paths = []  # by the material's place in the list: two materials may share a name
+    for mat, names in zip(materials, export_names(materials)):
+        name = names.ident
+        paths.append(f"/Materials/{name}")
         nodes, surface = flat_network(mat)
-        what = "exact" if exact(mat) else "closest graph, " + "; ".join(not_carried(mat))
+        what = EXACT if exact(mat) else "closest graph, " + "; ".join(not_carried(mat))
         lines += [
             f'    def Material "{name}" (',
-            "        doc = " + json.dumps(mat.name + ": " + what, ensure_ascii=False),
+            "        doc = " + usd_string(label(mat) + ": " + what),
+            "        customData = {",
+            "            string blender_name = " + usd_string(mat.name),
+            "            string blender_library = " + usd_string(mat.library),
+            "        }",
             "    )",
             "    {",
             "        token outputs:mtlx:surface.connect = "
@@ -101,7 +137,7 @@ def usda_document(materials: list) -> str:
                         f"</Materials/{name}/{inp.node}.outputs:out>"
                     )
                 elif inp.value is not None:
-                    meta = f' (colorSpace = "{inp.colorspace}")' if inp.colorspace else ""
+                    meta = f" (colorSpace = {usd_string(inp.colorspace)})" if inp.colorspace else ""
                     value = _usd_value(inp.type, inp.value)
                     lines.append(f"            {t} inputs:{inp.name} = {value}{meta}")
             lines.append(f"            {USD_TYPES[node.type]} outputs:out")
@@ -109,16 +145,19 @@ def usda_document(materials: list) -> str:
         lines.append("    }")
     lines += ["}", "", 'def Scope "Objects"', "{"]
     bound = {}
-    for mat in materials:
+    for mat, path in zip(materials, paths):
         for obj in mat.objects:
-            bound.setdefault(obj, paths[mat.name])
+            bound.setdefault(obj, path)
     used_objects = set()
     for obj, path in sorted(bound.items()):
         name = valid_name(obj, used_objects)
         lines += [
             f'    def Xform "{name}" (',
             '        prepend apiSchemas = ["MaterialBindingAPI"]',
-            "        doc = " + json.dumps("object " + obj, ensure_ascii=False),
+            "        doc = " + usd_string("object " + obj),
+            "        customData = {",
+            "            string blender_name = " + usd_string(obj),
+            "        }",
             "    )",
             "    {",
             f"        rel material:binding = <{path}>",
