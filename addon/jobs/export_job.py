@@ -27,23 +27,38 @@ from ..core.errors import UserError
 from ..core.gate import Gate, check_name, read_input
 from ..core.paths import safe_name
 
-FORMATS = ("materialx", "usd", "gltf")
+FORMATS = ("materialx", "usd", "gltf", "unity")
 WHAT = "the export's files"
 
 
 def plan_outputs(materials: list, fmt: str, out: Path, stem: str) -> dict:
-    """Output path -> text (or dict for JSON) of the format's documents."""
+    """Output path -> text (or dict for JSON) of the format's documents (Unity's: written by
+    ``unity_writers``, from the decoded maps)."""
     if fmt == "materialx":
-        docs, used = {}, set()
-        for mat in materials:
-            name = network.valid_name(safe_name(mat.name, "material"), used)
-            docs[out / f"{name}.mtlx"] = materialx.mtlx_document(mat)
-        return docs
+        names = network.export_names(materials)
+        return {out / n.mtlx: materialx.mtlx_document(m) for m, n in zip(materials, names)}
     if fmt == "usd":
         return {out / f"{stem}.usda": usd.usda_document(materials)}
     if fmt == "gltf":
         return {out / f"{stem}.gltf": gltf.gltf_document(materials)}
+    if fmt == "unity":
+        return {}
     raise UserError(f"unknown --format {fmt!r}; choose one of: {', '.join(FORMATS)}")
+
+
+def unity_writers(materials: list, files_: list, pixels: dict, out: Path, stem: str) -> dict:
+    """Unity's files (core/unity/mat.py ``unity_outputs``): relative path -> writer."""
+    from ..core.unity import mat as unity_mat
+
+    writers = {}
+    outputs = unity_mat.unity_outputs(materials, [f.name for f in files_], pixels, stem)
+    for rel, content in outputs.items():
+        if isinstance(content, tuple) and content[0] == unity_mat.PNG_RGBA:
+            rgba = content[1]
+            writers[rel] = lambda tmp, a=rgba, r=rel: unity_mat.write_png_rgba_to(tmp, a, out / r)
+        else:
+            writers[rel] = _write_bytes(content)
+    return writers
 
 
 def _texture_label(f) -> str:
@@ -114,6 +129,11 @@ def write_export(
     if fmt == "gltf":  # the .gltf's images only: the packed image replaces the raw maps
         uris = {img["uri"] for doc in docs.values() for img in doc.get("images", ())}
         copied = [f for f in files_ if f.name in uris]
+    elif fmt == "unity":  # albedo and normal: Unity's packed map replaces the others
+        from ..core.unity import mat as unity_mat
+
+        used = unity_mat.referenced_textures(materials)
+        copied = [f for f in files_ if f.name in used]
     else:
         copied = files_
     for f in files_:
@@ -125,10 +145,13 @@ def write_export(
         list(inputs) + [Path(f.source) for f in files_ if f.source],
     )
     pixels = {}
-    with files.temporary_folder("ctlab-export-") as scratch:
-        for f in files_:
-            pixels[f.name] = _decode(f, scratch)
+    if files_:
+        with files.temporary_folder("ctlab-export-") as scratch:
+            for f in files_:
+                pixels[f.name] = _decode(f, scratch)
     writers = {f.name: _copy(Path(f.source)) if f.source else _write_bytes(f.data) for f in copied}
+    if fmt == "unity":
+        writers.update(unity_writers(materials, files_, pixels, out, stem))
     if fmt == "gltf":
         for name, image in metallic_roughness_images(materials, pixels).items():
             writers[name] = _png(image, out / name)
@@ -144,7 +167,7 @@ def metallic_roughness_images(materials: list, pixels: dict) -> dict:
     the folder, which does not reference them."""
     images = {}
     for mat in materials:
-        name = gltf.metallic_roughness_name(mat)
+        name = gltf.metallic_roughness_name(mat, materials)
         if name is None:
             continue
         maps = {
@@ -157,6 +180,16 @@ def metallic_roughness_images(materials: list, pixels: dict) -> dict:
             maps.get("metallic"), maps.get("smoothness"), invert
         )
     return images
+
+
+def _not_carried(mat, fmt: str) -> list:
+    if fmt == "gltf":
+        return gltf.gltf_not_carried(mat)
+    if fmt == "unity":
+        from ..core.unity import mat as unity_mat
+
+        return unity_mat.unity_not_carried(mat)
+    return network.not_carried(mat)
 
 
 def run_export(blend: Path, fmt: str, out: Path, log=None, force: bool = False) -> dict:
@@ -179,11 +212,9 @@ def run_export(blend: Path, fmt: str, out: Path, log=None, force: bool = False) 
     return {
         "materials": [
             {
-                "name": m.name,
-                "exact": network.exact(m),
-                "not_carried": (
-                    gltf.gltf_not_carried(m) if fmt == "gltf" else network.not_carried(m)
-                ),
+                "name": network.label(m),
+                "exact": network.exact(m) and fmt in ("materialx", "usd"),
+                "not_carried": _not_carried(m, fmt),
             }
             for m in materials
         ],

@@ -8,6 +8,7 @@ import bpy
 from ..blender import convert, light_sync, model_node, renderer, scene_lights
 from .operators import (
     PLOT_IMAGE,
+    draw_import_menu,
     CTLAB_OT_add_node_group,
     CTLAB_OT_add_texture,
     CTLAB_OT_bake_environment,
@@ -309,4 +310,4 @@ PANELS = (
     CTLAB_PT_sidebar_materials,
     CTLAB_PT_sidebar_comparison,
 )
-MENU_ENTRIES = (("NODE_MT_add", draw_add_menu),)
+MENU_ENTRIES = (("NODE_MT_add", draw_add_menu), ("TOPBAR_MT_file_import", draw_import_menu))

@@ -7,6 +7,7 @@ import os
 
 from .options import BLEND, FORCE, FORMAT, OUT, VERBOSE, Command, check_path
 from .output import say, warn
+from ...core.export.network import EXACT
 from ...core.paths import input_file
 
 
@@ -24,15 +25,22 @@ def run(args) -> None:
     for note in data["notes"]:
         warn(note)
     for m in data["materials"]:
-        what = "exact" if m["exact"] and not m["not_carried"] else "; ".join(m["not_carried"])
-        say(f"  {m['name']}: {what or 'exact'}")
+        # MaterialX's reference GLSL adds GGX energy compensation: exact only where the
+        # closures are single scattering, as Cycles' OSL (core.export.network.EXACT)
+        what = EXACT if m["exact"] and not m["not_carried"] else "; ".join(m["not_carried"])
+        say(f"  {m['name']}: {what or EXACT}")
+    if args.format == "unity":
+        from ...core.unity.mat import COLOUR_SPACE_NOTE
+
+        say(COLOUR_SPACE_NOTE)
     say(f"done: {len(data['written'])} files in {out}")
 
 
 COMMAND = Command(
     "export",
     "a .blend's Cook-Torrance materials as MaterialX (.mtlx per material), USD (UsdShade "
-    "materials with the MaterialX network) or glTF (metallic-roughness)",
+    "materials with the MaterialX network), glTF (metallic-roughness) or Unity (Standard "
+    ".mat files with .meta)",
     (BLEND, FORMAT, OUT.but(help="output folder (the images go to textures/)"), FORCE, VERBOSE),
     run,
 )

@@ -16,10 +16,13 @@ from .plot import COMMAND as PLOT
 from .render import COMMAND as RENDER
 from .scene import COMMAND as SCENE
 from .tasks import COMMANDS as TASKS
+from .unity import COMMAND as IMPORT_UNITY
 from ...core.errors import UserError
 
 # in the order `ctlab --help` lists them
-COMMANDS = {c.name: c for c in (RENDER, COMPARE, BAKE, MATRIX, *TASKS, PLOT, SCENE, EXPORT)}
+COMMANDS = {
+    c.name: c for c in (RENDER, COMPARE, BAKE, MATRIX, *TASKS, PLOT, SCENE, EXPORT, IMPORT_UNITY)
+}
 
 # the options that take a value, of every command
 VALUE_FLAGS = frozenset(

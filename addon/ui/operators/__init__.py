@@ -22,6 +22,7 @@ from .materials import (
 )
 from .matrix import CTLAB_OT_bake_environment, CTLAB_OT_build_sphere_matrix
 from .plot import CTLAB_OT_brdf_plot, plot_command
+from .unity_import import CTLAB_OT_import_unity, draw_import_menu
 
 __all__ = [
     "CLASSES",
@@ -29,6 +30,7 @@ __all__ = [
     "PLOT_IMAGE",
     "_SHADER_ITEMS",
     "_job_tick",
+    "draw_import_menu",
     "plot_command",
     "show_plot",
     "stop_jobs",
@@ -51,4 +53,5 @@ CLASSES = (
     CTLAB_OT_cancel_comparison,
     CTLAB_OT_brdf_plot,
     CTLAB_OT_export_materialx,
+    CTLAB_OT_import_unity,
 )
