@@ -232,6 +232,9 @@ CASE_MODULES = (
     "test_write_gate",
     "test_travel_folder",
     "test_textures",
+    "test_datablocks",
+    "test_export_names",
+    "test_unity",
 )
 
 
