@@ -90,6 +90,26 @@ def check_texture(text, what: str, normal: bool = False) -> TextureInfo:
     return TextureInfo(str(path), w, h, n, warning)
 
 
+def matrix_textures(albedo: str, normal: str, seed: bool, strength: float) -> tuple:
+    """(MatrixSettings fields, warnings) for the chosen textures, each checked
+    (``check_texture``); ``seed``: the shipped pair where none is chosen. The command line
+    and the Sphere Matrix operator both take them from here."""
+    if seed:
+        seed_albedo, seed_normal = seed_pair()
+        albedo, normal = albedo or seed_albedo, normal or seed_normal
+    found, warnings = {"normal_strength": strength}, []
+    for key, path, what in (
+        ("albedo_texture", albedo, "albedo texture"),
+        ("normal_map", normal, "normal map"),
+    ):
+        if path:
+            info = check_texture(path, what, normal=key == "normal_map")
+            if info.warning:
+                warnings.append(info.warning)
+            found[key] = info.path
+    return found, warnings
+
+
 def seed_pair() -> tuple:
     """The shipped albedo texture and normal map (``--textured``)."""
     return str(SEED_ALBEDO), str(SEED_NORMAL)

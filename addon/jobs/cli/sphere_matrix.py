@@ -73,24 +73,15 @@ def settings_from(args, shader: str, view: str) -> MatrixSettings:
 def textures_from(args) -> dict:
     """The spheres' albedo texture and normal map (core/textures.py), each checked (one line
     for a bad image; a warning for a normal map that does not look like one)."""
-    from ...core.textures import check_texture, seed_pair
+    from ...core.textures import matrix_textures
     from .output import warn
 
-    albedo, normal = args.albedo_texture, args.normal_map
-    if args.textured:
-        seed_albedo, seed_normal = seed_pair()
-        albedo, normal = albedo or seed_albedo, normal or seed_normal
-    found = {}
-    for key, text, what in (
-        ("albedo_texture", albedo, "albedo texture"),
-        ("normal_map", normal, "normal map"),
-    ):
-        if text:
-            info = check_texture(text, what, normal=key == "normal_map")
-            if info.warning:
-                warn(info.warning)
-            found[key] = info.path
-    return dict(found, normal_strength=args.normal_strength)
+    found, warnings = matrix_textures(
+        args.albedo_texture, args.normal_map, args.textured, args.normal_strength
+    )
+    for message in warnings:
+        warn(message)
+    return found
 
 
 def lights_from(args) -> dict:

@@ -101,23 +101,16 @@ class CTLAB_OT_build_sphere_matrix(bpy.types.Operator):
 
     def _textures(self) -> dict:
         """The chosen textures, checked (core/textures.py); warnings reported."""
-        from ...core.textures import check_texture, seed_pair
+        from ...core.textures import matrix_textures
 
-        albedo = bpy.path.abspath(self.albedo_texture) if self.albedo_texture else ""
-        normal = bpy.path.abspath(self.normal_map) if self.normal_map else ""
-        if self.seed_textures:
-            seed_albedo, seed_normal = seed_pair()
-            albedo, normal = albedo or seed_albedo, normal or seed_normal
-        found = {"normal_strength": self.normal_strength}
-        for key, path, what in (
-            ("albedo_texture", albedo, "albedo texture"),
-            ("normal_map", normal, "normal map"),
-        ):
-            if path:
-                info = check_texture(path, what, normal=key == "normal_map")
-                if info.warning:
-                    self.report({'WARNING'}, info.warning)
-                found[key] = info.path
+        found, warnings = matrix_textures(
+            bpy.path.abspath(self.albedo_texture) if self.albedo_texture else "",
+            bpy.path.abspath(self.normal_map) if self.normal_map else "",
+            self.seed_textures,
+            self.normal_strength,
+        )
+        for message in warnings:
+            self.report({'WARNING'}, message)
         return found
 
     def execute(self, context):
