@@ -78,9 +78,9 @@ def test_a_users_node_group_of_our_name_is_kept(name):
     ours = model_node.find(mat).node_tree
     assert ours != user and owned.is_ours(ours, node_group.TAG)
     assert ours.get(node_group.SOURCE_HASH) == node_group.source_digest()
-    assert (
-        model_node.new_node(bpy.data.materials.new("Second").node_tree, "nodes").node_tree == ours
-    )
+    second = bpy.data.materials.new("Second")
+    compat.use_nodes(second)  # 4.5 makes a material's node tree only then
+    assert model_node.new_node(second.node_tree, "nodes").node_tree == ours
     held = {
         n.node_tree
         for t in bpy.data.node_groups
