@@ -55,10 +55,12 @@ def read_hdri(path, repair: bool = False):
     return pixels, count
 
 
-def read_pixels(path, what: str = "image", check=None) -> np.ndarray:
+def read_pixels(path, what: str = "image", check=None, need: int = 3) -> np.ndarray:
     """An image file's first three channels as float32 (height, width, 3), read whole: an
     unreadable, truncated or corrupt file is a UserError naming it as ``what``, never zeros.
-    ``check(spec, OIIO)`` may refuse the file from its header before the pixels are read."""
+    ``check(spec, OIIO)`` may refuse the file from its header before the pixels are read.
+    ``need``: the fewest channels taken (an image of fewer than three then gives its own
+    count, (height, width, 1 or 2))."""
     path = Path(path)
     OIIO = oiio()
     inp = OIIO.ImageInput.open(str(path))
@@ -70,11 +72,12 @@ def read_pixels(path, what: str = "image", check=None) -> np.ndarray:
         spec = inp.spec()
         if check is not None:
             check(spec, OIIO)
-        if spec.nchannels < 3:
+        if spec.nchannels < need:
             raise UserError(
                 f"{what} has {spec.nchannels} channel(s): {path}; an RGB image is needed"
             )
-        pixels = inp.read_image(0, 0, 0, 3, OIIO.FLOAT)
+        k = min(spec.nchannels, 3)
+        pixels = inp.read_image(0, 0, 0, k, OIIO.FLOAT)
         failed = inp.has_error
         detail = inp.geterror().strip() if failed else ""
     finally:
@@ -85,7 +88,7 @@ def read_pixels(path, what: str = "image", check=None) -> np.ndarray:
             + (f": {detail}" if detail else "")
             + ")"
         )
-    return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, 3)
+    return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, k)
 
 
 def _equirectangular_float(path):

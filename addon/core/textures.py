@@ -45,43 +45,27 @@ def check_texture(text, what: str, normal: bool = False) -> TextureInfo:
     """The image at ``text`` checked as ``what`` ("albedo texture", "normal map"): one
     UserError line for a missing, unreadable, empty, oversized or non-finite image; a normal
     map needs three channels and warns when its blue channel's mean is under 0.5."""
-    from .hdri import oiio
+    from .hdri import read_pixels
 
     path = input_file(text, what, missing=f"{what} not found: {text}; give an image file")
-    OIIO = oiio()
-    inp = OIIO.ImageInput.open(str(path))
-    if inp is None:
-        why = " ".join((OIIO.geterror() or "unknown format").split())[:160]
-        raise UserError(f"{what} unreadable: {path} ({why}); give a PNG, JPEG, TIFF or EXR image")
-    try:
-        spec = inp.spec()
-        w, h, n = spec.width, spec.height, spec.nchannels
+
+    def header(spec, _OIIO):
+        w, h = spec.width, spec.height
         if w < 1 or h < 1:
             raise UserError(f"{what} {path} is {w}x{h} pixels; give an image of at least 1x1")
         if w > MAX_SIDE or h > MAX_SIDE:
             raise UserError(
                 f"{what} {path} is {w}x{h} pixels; at most {MAX_SIDE} a side (scale it down)"
             )
-        if normal and n < 3:
-            raise UserError(f"{what} {path} has {n} channel(s); a normal map needs RGB")
-        pixels = inp.read_image(0, 0, 0, min(n, 3), OIIO.FLOAT)
-        failed = inp.has_error
-        detail = " ".join(inp.geterror().split())[:160] if failed else ""
-    finally:
-        inp.close()
-    if pixels is None or failed:
-        raise UserError(
-            f"{what} unreadable: {path} (the pixel data is corrupt or truncated"
-            + (f": {detail}" if detail else "")
-            + ")"
-        )
-    pixels = np.asarray(pixels, dtype=np.float32)
+
+    pixels = read_pixels(path, what, header, need=3 if normal else 1)
+    h, w, n = pixels.shape
     bad = int(np.count_nonzero(~np.isfinite(pixels)))
     if bad:
         raise UserError(f"{what} holds {bad} NaN/Inf value(s): {path}; repair it first")
     warning = ""
     if normal:
-        blue = float(pixels.reshape(-1, min(n, 3))[:, 2].mean())
+        blue = float(pixels[..., 2].mean())
         if blue < 0.5:
             warning = (
                 f"{what} {path} has a mean blue of {blue:.2f} (a tangent-space normal map's "
@@ -129,27 +113,23 @@ def thumbnail_uri(path, max_side: int = 160) -> str:
     import base64
 
     from .compare import write_png
-    from .errors import UserError as _UserError
     from .files import temporary_folder
-    from .hdri import oiio
+    from .hdri import read_pixels
 
-    OIIO = oiio()
-    inp = OIIO.ImageInput.open(str(path))
-    if inp is None:
-        return ""
+    kind = {}
+
+    def header(spec, OIIO):
+        kind["float"] = spec.format.basetype in (OIIO.FLOAT, OIIO.HALF, OIIO.DOUBLE)
+
     try:
-        spec = inp.spec()
-        n = spec.nchannels
-        pixels = inp.read_image(0, 0, 0, min(n, 3), OIIO.FLOAT)
-        is_float = spec.format.basetype in (OIIO.FLOAT, OIIO.HALF, OIIO.DOUBLE)
-    finally:
-        inp.close()
-    if pixels is None:
+        pixels = read_pixels(path, "texture", header, need=1)
+    except UserError:
         return ""
-    pixels = np.asarray(pixels, np.float32).reshape(spec.height, spec.width, -1)
+    is_float = kind["float"]
     if pixels.shape[2] < 3:
         pixels = np.repeat(pixels[..., :1], 3, axis=2)
-    step = max(1, -(-max(spec.width, spec.height) // max_side))
+    height, width = pixels.shape[:2]
+    step = max(1, -(-max(width, height) // max_side))
     pixels = np.nan_to_num(pixels[::step, ::step, :3], nan=0.0, posinf=1.0, neginf=0.0)
     if is_float:
         c = np.clip(pixels, 0.0, 1.0)
@@ -158,6 +138,6 @@ def thumbnail_uri(path, max_side: int = 160) -> str:
         with temporary_folder("ctlab-thumb-") as tmp:
             write_png(tmp / "thumb.png", pixels)
             data = (tmp / "thumb.png").read_bytes()
-    except (_UserError, OSError):
+    except (UserError, OSError):
         return ""
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
