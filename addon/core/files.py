@@ -324,11 +324,6 @@ def write_json(path: Path, data) -> None:
     write_text(path, json_text(data))
 
 
-def copy_file(src: Path, dst: Path) -> None:
-    with atomic_path(dst) as tmp:
-        shutil.copyfile(src, tmp)
-
-
 @contextlib.contextmanager
 def temporary_folder(prefix: str):
     """A private folder in the system's temporary folder, registered with the cleanup of an
