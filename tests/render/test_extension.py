@@ -11,6 +11,7 @@ from pathlib import Path
 import bpy
 
 from helpers import ROOT
+from unity_fixtures import snapshot, write_project
 from addon.core import osl_source
 
 BLENDER_EXT = (
@@ -54,7 +55,21 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
     assert "addon/data/correction_tables.npz" in names and "addon/data/node_group.blend" in names
     assert not any(n.startswith(("tests/", "scripts/", ".venv", ".ci")) for n in names)
 
+    assert "wheels/pyyaml-6.0.4-py3-none-any.whl" in names  # Unity's .mat files need it
+    project = write_project(tmp_path / "unity")
+    before = snapshot(project)
     script = textwrap.dedent(f"""
+        import importlib.machinery, sys
+        class OnlyTheExtensionsYaml:  # this venv has PyYAML; an installed Blender has none
+            def find_spec(self, name, path=None, target=None):
+                if name.split(".")[0] != "yaml":
+                    return None
+                where = [p for p in sys.path if p.startswith({str(tmp_path / "user")!r})]
+                spec = importlib.machinery.PathFinder.find_spec(name, path or where)
+                if spec is None:
+                    raise ImportError("no PyYAML among the extension's wheels")
+                return spec
+        sys.meta_path.insert(0, OnlyTheExtensionsYaml())
         import bpy
         bpy.utils.expose_bundled_modules()
         bpy.ops.extensions.package_install_files(filepath={str(zips[0])!r}, repo="user_default",
@@ -93,6 +108,11 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
             raise AssertionError("a missing HDRI was baked")
         except RuntimeError as exc:
             assert "HDRI not found: /nonexistent.exr" in str(exc), exc
+        # Unity's files through the wheel the extension ships
+        assert bpy.ops.ctlab.import_unity(directory={str(project)!r}) == {{'FINISHED'}}
+        import yaml
+        assert yaml.__file__.startswith({str(tmp_path / "user")!r}), yaml.__file__
+        assert {{"Brick", "Old", "AlbedoAlpha", "Missing"}} <= set(bpy.data.materials.keys())
         print("EXTENSION-OK")
     """)
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))
@@ -100,6 +120,7 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
         [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300
     )
     assert "EXTENSION-OK" in p.stdout, p.stdout[-2000:] + p.stderr[-2000:]
+    assert snapshot(project) == before  # the Unity folder is only read
     # the same panels, operators, preferences, properties and menu entry as the source tree
     from addon.ui import properties, register, panels as ui
 
