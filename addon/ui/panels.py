@@ -14,6 +14,7 @@ from .operators import (
     CTLAB_OT_bake_environment,
     CTLAB_OT_brdf_plot,
     CTLAB_OT_export_materialx,
+    CTLAB_OT_export_unity,
     CTLAB_OT_build_sphere_matrix,
     CTLAB_OT_cancel_comparison,
     CTLAB_OT_convert_to_cook_torrance,
@@ -154,6 +155,7 @@ class CTLAB_PT_material(bpy.types.Panel):
         row.operator(
             CTLAB_OT_export_materialx.bl_idname, text="MaterialX", icon='EXPORT'
         ).scope = 'ACTIVE'
+        row.operator(CTLAB_OT_export_unity.bl_idname, text="Unity", icon='EXPORT').scope = 'ACTIVE'
         if wm.ctlab_plot_state == "running":
             row.label(text=f"plotting: {wm.ctlab_plot_message}", icon='TIME')
         elif wm.ctlab_plot_state == "done":
@@ -258,7 +260,9 @@ class CTLAB_PT_sidebar_materials(_Sidebar, bpy.types.Panel):
         layout.operator(CTLAB_OT_new_material.bl_idname, icon='ADD')
         layout.prop(context.scene, "ctlab_sun")
         layout.operator(CTLAB_OT_sync_lighting.bl_idname, icon='FILE_REFRESH')
-        layout.operator(CTLAB_OT_export_materialx.bl_idname, icon='EXPORT').scope = 'ALL'
+        row = layout.row(align=True)
+        row.operator(CTLAB_OT_export_materialx.bl_idname, text="Export MaterialX", icon='EXPORT')
+        row.operator(CTLAB_OT_export_unity.bl_idname, text="Export Unity", icon='EXPORT')
         col = layout.column(align=True)
         col.label(text="Selected objects:")
         col.operator(CTLAB_OT_convert_to_cook_torrance.bl_idname).scope = 'SELECTED'

@@ -297,3 +297,24 @@ def test_import_operator(addon, tmp_path):
     with pytest.raises(RuntimeError, match="is not YAML"):
         (tmp_path / "Bad.mat").write_text("Material: [unclosed\n")
         bpy.ops.ctlab.import_unity(filepath=str(tmp_path / "Bad.mat"))
+
+
+def test_export_operator_round_trip(addon, tmp_path):
+    """Export Cook-Torrance as Unity Materials (the panels' Unity button) writes what the
+    command writes; the imported materials go back out to .mat files of the same values."""
+    root = fx.write_project(tmp_path / "Project")
+    assert bpy.ops.ctlab.import_unity(directory=str(root)) == {'FINISHED'}
+    out = tmp_path / "Out"
+    assert bpy.ops.ctlab.export_unity(directory=str(out)) == {'FINISHED'}
+    found = unity_import_job.read_unity(out)
+    back = {s.name: s for s in found.surfaces}
+    first = {s.name: s for s in unity_import_job.read_unity(root).surfaces}
+    assert set(back) == {"Brick", "Old", "AlbedoAlpha", "Missing"}, sorted(back)
+    for name in ("Old", "Missing"):
+        assert back[name].metallic == pytest.approx(first[name].metallic, abs=1 / 255)
+        assert back[name].smoothness == pytest.approx(first[name].smoothness, abs=1 / 255)
+    with pytest.raises(RuntimeError, match="ctlab did not write"):
+        (tmp_path / "Mine").mkdir()
+        (tmp_path / "Mine" / "Brick.mat").write_text("mine\n")
+        bpy.ops.ctlab.export_unity(directory=str(tmp_path / "Mine"))
+    assert (tmp_path / "Mine" / "Brick.mat").read_text() == "mine\n"

@@ -8,7 +8,7 @@ from .comparison import (
     CTLAB_OT_render_comparison,
     CTLAB_OT_scene_comparison,
 )
-from .export import CTLAB_OT_export_materialx
+from .export import CTLAB_OT_export_materialx, CTLAB_OT_export_unity
 from .jobs import JOBS, PLOT_IMAGE, _job_tick, show_plot, stop_jobs
 from .lighting import CTLAB_OT_sync_lighting, sync_summary
 from .materials import (
@@ -53,5 +53,6 @@ CLASSES = (
     CTLAB_OT_cancel_comparison,
     CTLAB_OT_brdf_plot,
     CTLAB_OT_export_materialx,
+    CTLAB_OT_export_unity,
     CTLAB_OT_import_unity,
 )

@@ -1,6 +1,7 @@
-"""Export Cook-Torrance as MaterialX: the file's Cook-Torrance materials (or the active one) as
-one .mtlx each, with their textures, into a folder the user chooses (jobs/export_job.py, the
-same writer as ``ctlab export --format materialx``). Nothing in the file is changed."""
+"""Export Cook-Torrance as MaterialX or as Unity materials: the file's Cook-Torrance materials
+(or the active one) as one .mtlx, or one Unity Standard .mat and its .meta, each, with their
+textures, into a folder the user chooses (jobs/export_job.py, the same writer as ``ctlab export
+--format materialx|unity``). Nothing in the file is changed."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from ...blender import material_export, model_node
 from ...core.errors import UserError
+from ...core.unity import mat as unity_mat
 from ...core.paths import clean, safe_name
 from .common import _active_material
 
@@ -20,12 +22,13 @@ _EXPORT_SCOPE = (
 )
 
 
-class CTLAB_OT_export_materialx(bpy.types.Operator):
-    """Export the Cook-Torrance materials as MaterialX: a .mtlx per material (the model's
-    nodedef and a nodegraph of MaterialX's pbrlib nodes) and its textures, into a folder"""
+class _Export:
+    """The export operators' common part: the folder, the scope, Overwrite, and the run;
+    a subclass names its format (``FORMAT``, ``FORMAT_NAME``) and what it reports after."""
 
-    bl_idname = "ctlab.export_materialx"
-    bl_label = "Export Cook-Torrance as MaterialX"
+    FORMAT = ""
+    FORMAT_NAME = ""
+    AFTER = ()  # lines reported once the files are written
     bl_options = {'REGISTER'}
 
     directory: StringProperty(name="Folder", subtype='DIR_PATH', default="")
@@ -60,15 +63,40 @@ class CTLAB_OT_export_materialx(bpy.types.Operator):
             stem = safe_name(Path(bpy.data.filepath).stem or "untitled", "export")
             inputs = [Path(bpy.data.filepath)] if bpy.data.filepath else []
             written = write_export(
-                materials, files, "materialx", out, stem, inputs=inputs, force=self.overwrite
+                materials, files, self.FORMAT, out, stem, inputs=inputs, force=self.overwrite
             )
         except UserError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
         for note in notes:
             self.report({'WARNING'}, note)
+        for line in self.AFTER:
+            self.report({'INFO'}, line)
         self.report(
             {'INFO'},
-            f"Exported {len(materials)} material(s) as MaterialX: {len(written)} files in {out}",
+            f"Exported {len(materials)} material(s) as {self.FORMAT_NAME}: "
+            f"{len(written)} files in {out}",
         )
         return {'FINISHED'}
+
+
+class CTLAB_OT_export_materialx(_Export, bpy.types.Operator):
+    """Export the Cook-Torrance materials as MaterialX: a .mtlx per material (the model's
+    nodedef and a nodegraph of MaterialX's pbrlib nodes) and its textures, into a folder"""
+
+    bl_idname = "ctlab.export_materialx"
+    bl_label = "Export Cook-Torrance as MaterialX"
+    FORMAT = "materialx"
+    FORMAT_NAME = "MaterialX"
+
+
+class CTLAB_OT_export_unity(_Export, bpy.types.Operator):
+    """Export the Cook-Torrance materials as Unity materials: a .mat of Unity's built-in
+    Standard shader (metallic workflow) and its .meta per material, with the albedo, the normal
+    map and the packed metallic-smoothness map, into a folder (an Assets folder of a project)"""
+
+    bl_idname = "ctlab.export_unity"
+    bl_label = "Export Cook-Torrance as Unity Materials"
+    FORMAT = "unity"
+    FORMAT_NAME = "Unity materials"
+    AFTER = (unity_mat.COLOUR_SPACE_NOTE,)
