@@ -1,4 +1,4 @@
-"""Unity's Standard materials as Cook-Torrance materials (core/unity/read.py says what a
+"""Unity's Standard materials as Cook-Torrance materials (core/unity/standard.py says what a
 Standard material means for the model; docs/usage.md "To and from Unity" is the table).
 
 Each material is what the add-on's New Material makes (the default implementation, the
@@ -28,7 +28,7 @@ import bpy
 from . import compat, model_node
 from ..core.errors import UserError
 from ..core.model import ARTIST
-from ..core.unity.read import Surface
+from ..core.unity.standard import Surface
 
 SOURCE_PROP = "ctlab_unity_source"  # the .mat a material came from
 

@@ -1,7 +1,7 @@
 """``ctlab import-unity PATH --out FILE.blend`` and the operator *Unity Materials (.mat /
 folder)*: a Unity project's built-in Standard (metallic) materials as Cook-Torrance
-materials (core/unity/read.py reads the files and says what each material means;
-blender/unity_import.py builds the materials).
+materials (core/unity/read.py reads the files, core/unity/standard.py says what each
+material means; blender/unity_import.py builds the materials).
 
 PATH is a ``.mat`` or a folder: a Unity project (its Assets and Packages), an Assets folder
 or any folder below one; the textures are found through the ``.meta`` guids under it (a lone
@@ -24,6 +24,7 @@ from pathlib import Path
 from ..core import files
 from ..core.errors import UserError
 from ..core.unity import read as unity
+from ..core.unity import standard
 
 BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd, gzip
 
@@ -32,7 +33,7 @@ BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd, gzi
 class UnityImport:
     """What a Unity path holds for the import, read before anything is built."""
 
-    surfaces: list = field(default_factory=list)  # core.unity.read.Surface
+    surfaces: list = field(default_factory=list)  # core.unity.standard.Surface
     skipped: list = field(default_factory=list)  # one line each: other shaders, unreadable
     warnings: list = field(default_factory=list)
     roots: list = field(default_factory=list)  # the folders read
@@ -52,8 +53,8 @@ def read_unity(path: Path) -> UnityImport:
     others listed. A ``.mat`` given as ``path`` that cannot be read is a UserError."""
     path = Path(path)
     if path.is_dir():
-        roots = unity.project_roots(path)
-        project = unity.scan(roots)
+        roots = standard.project_roots(path)
+        project = standard.scan(roots)
         mats = project.materials
         if not mats:
             raise UserError(
@@ -65,8 +66,8 @@ def read_unity(path: Path) -> UnityImport:
             raise UserError(f"{path} is not a Unity material (.mat) or folder")
         text = unity.read_text(path, "Unity material")
         unity.read_material(text, str(path))  # bad input: refused before the folder is read
-        roots = [unity.assets_root_of(path)]
-        project = unity.scan(roots)
+        roots = [standard.assets_root_of(path)]
+        project = standard.scan(roots)
         mats = [path]
     else:
         raise UserError(f"no such file or folder: {path}; give a .mat file or a Unity project")
@@ -82,9 +83,9 @@ def read_unity(path: Path) -> UnityImport:
             out.skipped.append(str(exc))
             continue
         if not mat.is_standard:
-            out.skipped.append(f"{shown} ({mat.name}): {unity.shader_label(mat, project)}")
+            out.skipped.append(f"{shown} ({mat.name}): {standard.shader_label(mat, project)}")
             continue
-        out.surfaces.append(unity.surface(mat, project.assets))
+        out.surfaces.append(standard.surface(mat, project.assets))
     return out
 
 

@@ -16,7 +16,7 @@ import unity_fixtures as fx
 from addon.core.errors import UserError
 from addon.core.export.network import Material, Texture, utf8_text
 from addon.core.unity import mat as writer
-from addon.core.unity import read
+from addon.core.unity import read, standard
 
 
 def _srgb(c):
@@ -58,9 +58,9 @@ def test_unity5_pairs_layout_with_a_keyword_string():
 
 
 def test_only_fileid_46_of_the_builtin_guid_is_standard():
-    for file_id, standard in ((46, True), (45, False), (47, False)):
+    for file_id, is_standard in ((46, True), (45, False), (47, False)):
         m = read.read_material(fx.mat_pairs("M", shader_file_id=file_id), "M.mat")
-        assert m.is_standard is standard
+        assert m.is_standard is is_standard
     toon = read.read_material(fx.mat_flat("T", shader="{fileID: 46, guid: " + "1" * 32 + "}"), "T")
     assert not toon.is_standard  # fileID 46 of another guid is some other shader
 
@@ -93,7 +93,7 @@ def test_meta_old_and_new_colour_flags():
 
 def _project(tmp_path):
     root = fx.write_project(tmp_path / "proj")
-    project = read.scan(read.project_roots(root))
+    project = standard.scan(standard.project_roots(root))
     mats = {
         read.read_material(p.read_text(), p.name).name: read.read_material(p.read_text(), p.name)
         for p in project.materials
@@ -105,14 +105,14 @@ def test_scan_finds_guids_and_materials(tmp_path):
     root, project, mats = _project(tmp_path)
     assert project.assets[fx.G_ALBEDO][0] == root / "Assets" / "Textures" / "albedo.png"
     assert set(mats) == {"Brick", "Old", "AlbedoAlpha", "Missing", "Spec", "Autodesk", "Toon"}
-    assert read.shader_label(mats["Toon"], project) == "shader Toon.shader"
-    assert read.shader_label(mats["Spec"]) == "Standard (Specular setup)"
+    assert standard.shader_label(mats["Toon"], project) == "shader Toon.shader"
+    assert standard.shader_label(mats["Spec"]) == "Standard (Specular setup)"
     assert not project.problems
 
 
 def test_surface_of_standard_materials(tmp_path):
     _, project, mats = _project(tmp_path)
-    brick = read.surface(mats["Brick"], project.assets)
+    brick = standard.surface(mats["Brick"], project.assets)
     assert brick.albedo == pytest.approx([_srgb(c) for c in fx.BRICK_COLOR[:3]], abs=1e-9)
     assert brick.albedo_map.path.endswith("albedo.png") and brick.albedo_map.srgb
     assert brick.metallic_map.path.endswith("metal.png") and brick.metallic_map.srgb
@@ -122,12 +122,12 @@ def test_surface_of_standard_materials(tmp_path):
     assert any("_OcclusionMap" in n for n in brick.not_carried)
     # _SmoothnessTextureChannel 1: the albedo's alpha times _GlossMapScale; the metallic
     # map's alpha and _Glossiness ignored
-    alpha = read.surface(mats["AlbedoAlpha"], project.assets)
+    alpha = standard.surface(mats["AlbedoAlpha"], project.assets)
     assert alpha.smoothness_from == "albedo_map" and alpha.gloss_map_scale == 0.5
-    assert read.effective_smoothness(alpha, albedo_alpha=0.6, gloss_alpha=0.1) == 0.3
-    old = read.surface(mats["Old"], project.assets)
+    assert standard.effective_smoothness(alpha, albedo_alpha=0.6, gloss_alpha=0.1) == 0.3
+    old = standard.surface(mats["Old"], project.assets)
     assert old.smoothness_from == "constant" and old.smoothness == 0.65 and old.metallic == 0.3
-    missing = read.surface(mats["Missing"], project.assets)
+    missing = standard.surface(mats["Missing"], project.assets)
     assert missing.albedo_map is None and fx.G_GONE in missing.warnings[0]
 
 
@@ -159,9 +159,9 @@ def _read_back(out: dict, tmp_path: Path):
         asset = tmp_path / rel[: -len(".meta")]
         if rel.startswith("textures/") and rel.endswith(".meta") and not asset.exists():
             asset.write_bytes(fx.png_bytes(np.ones((1, 1, 4))))
-    project = read.scan([tmp_path])
+    project = standard.scan([tmp_path])
     surfaces = [
-        read.surface(read.read_material(p.read_text(), p.name), project.assets)
+        standard.surface(read.read_material(p.read_text(), p.name), project.assets)
         for p in project.materials
     ]
     return surfaces

@@ -7,7 +7,7 @@ entry is ``unity_outputs``; docs/usage.md, "To and from Unity", is the mapping.
 
 Colour: Unity serialises a colour as its inspector shows it, sRGB-encoded, and in a project
 of Linear colour space decodes it before shading; the model's albedo is linear, so ``_Color``
-is its sRGB encoding (``read.linear_to_srgb``). In a Gamma project the look does not match
+is its sRGB encoding (``standard.linear_to_srgb``). In a Gamma project the look does not match
 (COLOUR_SPACE_NOTE).
 
 The ``.mat`` is Unity 2019/2020's text (Material serializedVersion 6, the flat property
@@ -21,7 +21,8 @@ import re
 
 from ..export.network import Material, export_names, file_stem, fmt_float, utf8_text
 from ..export.network import TEXTURES
-from .read import BUILTIN_GUID, STANDARD, TEXTURE_FILE_ID, linear_to_srgb
+from .read import BUILTIN_GUID, STANDARD, TEXTURE_FILE_ID
+from .standard import linear_to_srgb
 
 COLOUR_SPACE_NOTE = (
     "Unity: set the project's Color Space to Linear (Project Settings > Player > Other "
