@@ -61,6 +61,15 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$STAMP" 2>/dev/null)" != "$want" ]; 
   "$VENV/bin/python" -m pip install --quiet --no-compile --disable-pip-version-check -r "$REQ" >&2
   echo "$want" > "$STAMP"
 fi
+# Packages whose own pins clash with ours: without their dependencies (the file says why)
+NODEPS="$ROOT/scripts/requirements-nodeps.txt"
+NODEPS_STAMP="$VENV/.requirements-nodeps.sha256"
+want="$(sha256sum "$NODEPS" | cut -d' ' -f1)"
+if [ "$(cat "$NODEPS_STAMP" 2>/dev/null)" != "$want" ]; then
+  "$VENV/bin/python" -m pip install --quiet --no-compile --disable-pip-version-check --no-deps \
+    -r "$NODEPS" >&2
+  echo "$want" > "$NODEPS_STAMP"
+fi
 PY="$VENV/bin/python"
 # Byte-compile the environment once (about 4 s on 2 cores). Where PYTHONDONTWRITEBYTECODE is
 # set (it is on this project's machines), Python never writes what it compiles, so every process compiled

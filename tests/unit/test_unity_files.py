@@ -270,3 +270,41 @@ def test_names_are_unique_files():
     assert len({k.casefold() for k in mats}) == 3
     names = {read.read_material(out[k].decode(), k).name for k in mats}
     assert names == {"Gold", "gold", "Go/ld"}
+
+
+def test_unityparser_reads_what_the_writer_writes(tmp_path):
+    """An independent reader of Unity's YAML (unityparser) loads every .mat the writer
+    writes: the Standard shader, the values within 1/255, each texture's guid that of a
+    .meta written beside it, the normal map's .meta a normal map."""
+    from unityparser import UnityDocument
+
+    metal = np.zeros((2, 2, 3), np.float32)
+    rough = np.full((2, 2, 3), 0.25, np.float32)
+    painted = _material((0.2, 0.4, 0.6), 0.0, 0.5)
+    gold = Material("Gold", albedo=(1.0, 0.766, 0.336), metallic=0.9, smoothness=0.3)
+    out = writer.unity_outputs(
+        [painted, gold], (), {"textures/rough.png": rough, "textures/metal.png": metal}
+    )
+    _read_back(out, tmp_path)
+    metas = {read.read_meta(p.read_text(), p.name).guid: p for p in tmp_path.rglob("*.meta")}
+    for name in ("Painted_Metal.mat", "Gold.mat"):
+        m = UnityDocument.load_yaml(str(tmp_path / name)).entry
+        assert type(m).__name__ == "Material"
+        assert (int(m.m_Shader["fileID"]), m.m_Shader["guid"]) == (46, fx.BUILTIN)
+        props = m.m_SavedProperties
+        floats = {k: float(v) for entry in props["m_Floats"] for k, v in entry.items()}
+        colors = {k: v for entry in props["m_Colors"] for k, v in entry.items()}
+        textures = {k: v for entry in props["m_TexEnvs"] for k, v in entry.items()}
+        if name == "Gold.mat":
+            assert floats["_Metallic"] == pytest.approx(0.9, abs=1 / 255)
+            assert floats["_Glossiness"] == pytest.approx(0.3, abs=1 / 255)
+            rgb = [float(colors["_Color"][c]) for c in "rgb"]
+            encoded = [1.055 * c ** (1 / 2.4) - 0.055 for c in gold.albedo]  # the sRGB curve
+            assert rgb == pytest.approx(encoded, abs=1 / 255)
+            continue
+        for prop in ("_MainTex", "_BumpMap", "_MetallicGlossMap"):
+            guid = textures[prop]["m_Texture"]["guid"]
+            assert guid in metas, (prop, guid)
+        bump = metas[textures["_BumpMap"]["m_Texture"]["guid"]]
+        meta = UnityDocument.load_yaml(str(bump)).entry
+        assert int(meta["TextureImporter"]["textureType"]) == 1
