@@ -187,7 +187,7 @@ def _child_render(
             after_convert(info)
     seed = info.get("seed", 0)  # a hook may ask for another seed (bench/scene_samples.py)
     job = SceneJob(blend=Path(blend), out=Path(out), size=size, samples=samples, seed=seed)
-    comparison_render.configure(
+    comparison_render.set_comparison_render(
         scene, scene.camera, job.size, job.samples, job.seed, osl, job.notes
     )
     d = renderer.render(scene, Path(out), {"side": side}, os.devnull)

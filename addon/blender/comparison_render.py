@@ -24,7 +24,7 @@ def image_size(scene: bpy.types.Scene, size: int) -> tuple:
     return max(1, round(size * aspect)), size
 
 
-def configure(
+def set_comparison_render(
     scene: bpy.types.Scene, camera, size: int, samples: int, seed: int, osl: bool, notes: list
 ) -> tuple:
     """Cycles on the CPU, the same for both renders: the job's samples and seed, no denoiser,

@@ -41,7 +41,7 @@ import bpy
 import numpy as np
 
 from ..blender import convert, light_sync, model_node, renderer
-from ..blender.comparison_render import RENDER_FILES, configure, render_into
+from ..blender.comparison_render import RENDER_FILES, render_into, set_comparison_render
 from ..blender.user_blend import (
     check_blend_file,
     check_data,
@@ -287,7 +287,9 @@ def run_scene(job: SceneJob, events: Events | None = None) -> dict:
         for m in used
         if model_node.find(m) is not None
     ) or (job.convert and impl == "osl")
-    width, height = configure(scene, camera, job.size, job.samples, job.seed, osl, job.notes)
+    width, height = set_comparison_render(
+        scene, camera, job.size, job.samples, job.seed, osl, job.notes
+    )
 
     out = Path(job.out)
     folders = {
