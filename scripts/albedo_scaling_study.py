@@ -15,7 +15,7 @@ directions with the model of tests/reference_model.py (written from docs/model.m
 none; the mean CIEDE2000 over the sphere (inside 0.9 of its radius) of the display values
 (sRGB, 8 bits) against the model's, for the closures alone and albedo-scaled.
 
-    .venv-bpy5.2/bin/python scripts/albedo_scaling_study.py     # about 6 min on 2 cores
+    ./scripts/dev.sh albedo_study     # about 6 min on 2 cores
 
 Result (2026-12-04; the split-sum correction's figures in that test, at 1024 samples, in
 brackets): Cook-Torrance G on metal at smoothness 0: closures alone 4.94, albedo-scaled 1.82

@@ -7,7 +7,7 @@ Every render runs in its own process (scripts/ctlab.py render), as an artist's w
 render time is Cycles' synchronisation plus render as scene.json records them, and the
 process's wall time is reported beside it.
 
-    .venv-bpy<series>/bin/python scripts/bench.py [--quick] [--only SECTION ...]
+    ./scripts/dev.sh bench [--quick] [--only SECTION ...]
 
 Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only``
 re-runs the named sections (render, error, main, bake, scene, graph, scene-real: every

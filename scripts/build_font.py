@@ -12,7 +12,7 @@ JSON under "missing" (raster.py draws them as '?').
 
 Run it with a bpy Python; the output is the same bytes on every run with the same Blender:
 
-    .venv-bpy5.2/bin/python scripts/build_font.py
+    ./scripts/dev.sh build_font
 """
 
 import json

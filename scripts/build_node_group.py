@@ -7,7 +7,7 @@ core/node_description.py, blender/node_group.py, blender/node_compiler.py: ``sou
 tests/render/test_build_once.py fails until it is run.
 
     CTLAB_BLENDER=4.5 ./scripts/ctlab.sh --version >/dev/null   # sets up .venv-bpy4.5
-    .venv-bpy4.5/bin/python scripts/build_node_group.py
+    CTLAB_BLENDER=4.5 ./scripts/dev.sh build_node_group
 """
 
 import json

@@ -13,7 +13,7 @@ dedicated to the public domain (CC0 1.0; addon/data/seed_textures.LICENSE.txt).
 
 Run it with a bpy Python; the output is the same bytes on every run with the same Blender:
 
-    .venv-bpy5.2/bin/python scripts/build_seed_textures.py
+    ./scripts/dev.sh build_seed_textures
 """
 
 import os

@@ -7,7 +7,7 @@ correction_tables.npz with correction_tables.json (addon/core/correction_tables.
 after changing the model or the tables' parameters; tests/render/test_ibl_bake.py fails until
 it is run.
 
-    .venv-bpy<series>/bin/python scripts/build_tables.py
+    ./scripts/dev.sh build_tables
 """
 
 import io

@@ -8,7 +8,7 @@ wheel) and writes it as a ``py3-none-any`` wheel, byte for byte the same on ever
 timestamps, sorted entries). PyYAML falls back to its pure-Python loader when ``yaml._yaml`` is
 absent, which is what the add-on uses (SafeLoader).
 
-    .venv-bpy5.2/bin/python scripts/build_yaml_wheel.py
+    ./scripts/dev.sh build_yaml_wheel
 
 The archive is fetched with pip from the package index and checked against SHA256 below.
 """

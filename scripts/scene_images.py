@@ -4,7 +4,7 @@ the metal sphere as the Cook-Torrance OSL shader in the scene transport (Smith G
 as Principled BSDF (GGX), and as the same material in the lab transport, side by side, with
 the mean CIEDE2000 over the sphere printed.
 
-    .venv-bpy<series>/bin/python scripts/scene_images.py [--samples 256] [--size 320x240]
+    ./scripts/dev.sh scene_images [--samples 256] [--size 320x240]
 """
 
 import argparse

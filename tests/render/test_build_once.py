@@ -158,7 +158,7 @@ def test_the_shipped_group_is_the_build_and_is_appended_without_one(monkeypatch,
     check: a changed default in the description fails the digest, and a node changed in the
     shipped file fails the comparison."""
     assert node_group.shipped_digest() == node_group.source_digest(), (
-        "the shipped node group is stale: run .venv-bpy4.5/bin/python scripts/build_node_group.py"
+        "the shipped node group is stale: run CTLAB_BLENDER=4.5 ./scripts/dev.sh build_node_group"
     )
     monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
     monkeypatch.setattr(node_group, "_store", lambda *a: None)
