@@ -75,22 +75,6 @@ def _normal_map(nt, image, strength: float = 1.0):
     return nmap.outputs["Normal"]
 
 
-def map_uv(nt, scale) -> None:
-    """Every Image Texture node of ``nt`` reads the UV map scaled by ``scale`` (a Mapping
-    node: the sphere matrix repeats its textures, core/textures.py UV_SCALE)."""
-    textures = [n for n in nt.nodes if n.bl_idname == "ShaderNodeTexImage"]
-    if not textures:
-        return
-    coords = nt.nodes.new("ShaderNodeTexCoord")
-    coords.location = (-1100, 0)
-    mapping = nt.nodes.new("ShaderNodeMapping")
-    mapping.location = (-900, 0)
-    mapping.inputs["Scale"].default_value = scale
-    nt.links.new(coords.outputs["UV"], mapping.inputs["Vector"])
-    for tex in textures:
-        nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
-
-
 def _connect_or_set(nt, value, sock):
     if isinstance(value, bpy.types.NodeSocket):
         nt.links.new(value, sock)

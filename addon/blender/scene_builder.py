@@ -191,7 +191,6 @@ def build_matrix(scene: bpy.types.Scene, s: MatrixSettings, files: tuple) -> dic
         node = model_node.find(mat)
         model_node.add_drivers(mat.node_tree, node, sun, scene.world)
         scene_lights.sync_slots(mat.node_tree, node, light_objects)
-    materials.map_uv(mat.node_tree, UV_SCALE)
     mat[TAG] = True
 
     mesh = bpy.data.meshes.new("Cook-Torrance Lab Sphere")
@@ -227,15 +226,22 @@ def _texture_images(s) -> dict:
 
 def _sphere_mesh(mesh: bpy.types.Mesh, radius: float, segments=96, rings=48) -> None:
     """A smooth-shaded UV sphere fine enough that facets never show at matrix resolutions,
-    with the UV map Blender makes for a UV sphere (the textures' and the normal map's
-    tangents)."""
+    with the UV map Blender makes for a UV sphere scaled by core/textures.py UV_SCALE (the
+    textures repeat twice around, once pole to pole; the normal map's tangents follow it).
+    The scale lives in the mesh, not in a Mapping node: a node costs every shading point of
+    every render (Cycles' OSL runs it as a shader call), the mesh's UVs nothing."""
     import bmesh
 
     bm = bmesh.new()
-    bm.loops.layers.uv.new("UVMap")
+    uv = bm.loops.layers.uv.new("UVMap")
     bmesh.ops.create_uvsphere(
         bm, u_segments=segments, v_segments=rings, radius=radius, calc_uvs=True
     )
+    su, sv = UV_SCALE[0], UV_SCALE[1]
+    for face in bm.faces:
+        for loop in face.loops:
+            u, v = loop[uv].uv
+            loop[uv].uv = (u * su, v * sv)
     bm.to_mesh(mesh)
     bm.free()
     mesh.shade_smooth()

@@ -24,7 +24,7 @@ from .files import DATA_DIR
 from .paths import input_file
 
 MAX_SIDE = 8192  # larger images cost memory and time without showing on a matrix's sphere
-UV_SCALE = (2.0, 1.0, 1.0)  # the Mapping node's scale: twice around, once pole to pole
+UV_SCALE = (2.0, 1.0)  # the sphere's UV map scaled: twice around, once pole to pole
 SEED_ALBEDO = DATA_DIR / "seed_albedo.png"
 SEED_NORMAL = DATA_DIR / "seed_normal.png"
 SEED_SOURCE = DATA_DIR / "seed_textures.LICENSE.txt"

@@ -281,5 +281,12 @@ def test_the_sphere_matrix_operator_puts_the_seed_textures_on(addon):
         o.data.uv_layers for o in bpy.data.objects if o.get(scene_builder.TAG) and o.type == 'MESH'
     ]
     assert uv and all(len(layers) == 1 for layers in uv)
+    # twice around (u 0..2), once pole to pole (v 0..1), in the mesh: no Mapping node to pay
+    coords = np.array([d.uv[:] for d in uv[0][0].data])
+    assert coords[:, 0].min() == pytest.approx(0, abs=1e-6)
+    assert coords[:, 0].max() == pytest.approx(2, abs=1e-6)
+    assert coords[:, 1].min() == pytest.approx(0, abs=1e-6)
+    assert coords[:, 1].max() == pytest.approx(1, abs=1e-6)
+    assert not any(n.bl_idname == "ShaderNodeMapping" for n in mat.node_tree.nodes)
     with pytest.raises(RuntimeError, match="normal map not found"):
         bpy.ops.ctlab.build_sphere_matrix(rows=2, cols=2, resolution=32, normal_map="/gone.png")
