@@ -1,11 +1,14 @@
 """What the benchmark's sections share: the repository's paths, the renderers as ``ctlab
 render``'s arguments, and one render of the sphere matrix in its own process (as an artist's
 would run it: its render time is Cycles' synchronisation plus render as scene.json records
-them, and the process's wall time is reported beside it)."""
+them, and the process's wall time is reported beside it); and a section's own child process
+(``child``: scripts/bench.py --child SECTION ARGS, the one child entry of the benchmark)."""
 
 import json
+import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -13,6 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # Converged images, bakes and the node group, kept across runs (keyed by their sources)
 CACHE = ROOT / "out" / "bench-cache"
 CTLAB = ROOT / "scripts" / "ctlab.py"
+BENCH = ROOT / "scripts" / "bench.py"
 
 # The renderers, as ctlab render's arguments; Principled is every ratio's denominator.
 RENDERERS = {
@@ -73,3 +77,23 @@ def render(name: str, out: Path, grid: str, size: int, samples: int, seed: int =
         "process_seconds": round(wall, 2),
         "folder": str(out),
     }
+
+
+def child(section: str, *args) -> dict:
+    """One child process of ``section`` (``scripts/bench.py --child SECTION ARGS``, which runs
+    bench/scene_real.py's ``child_main`` with the section's hook): its RESULT line, with its
+    wall time."""
+    cmd = [sys.executable, str(BENCH), "--child", section, *map(str, args)]
+    env = dict(os.environ)
+    env.setdefault("CTLAB_CACHE", str(CACHE))
+    start = time.perf_counter()
+    # the child ends with os._exit (no atexit): its temporary folder, Blender's session folder
+    # in it, is one of ours, removed here
+    with tempfile.TemporaryDirectory(prefix="ctlab-bench-") as tmp:
+        p = subprocess.run(cmd, capture_output=True, text=True, env=dict(env, TMPDIR=tmp))
+    if p.returncode != 0:
+        raise SystemExit(f"bench: {' '.join(cmd)} failed:\n{(p.stderr or p.stdout)[-3000:]}")
+    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
+    out = json.loads(lines[-1][7:]) if lines else {}
+    out["process_seconds"] = round(time.perf_counter() - start, 2)
+    return out

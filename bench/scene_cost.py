@@ -1,9 +1,9 @@
 """Where the converted product shot's render time goes: the node group (default settings) with
 one part of it taken out at a time.
 
-    .venv-bpy<series>/bin/python bench/scene_cost.py [--quick] [--pairs N]
+    ./scripts/dev.sh bench --only scene-cost [--quick] [--pairs N]
 
-(also ``scripts/bench.py --only scene-cost``). The scene, its conversion and the renders are
+The scene, its conversion and the renders are
 bench/scene_real.py's ("nodes default"); after the conversion each variant below changes the
 converted group in the render's own process (never a file), and Cycles renders it. The
 variants are not the model: they drop terms (the pictures are wrong on purpose), and exist
@@ -22,7 +22,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from bench import scene_real  # noqa: E402
+from bench.common import child  # noqa: E402
 
+SECTION = "scene-cost"
 CONFIG = "nodes default"
 # name -> what the variant takes out (the table's words)
 VARIANTS = {
@@ -147,9 +149,9 @@ def bench_scene_cost(quick: bool, work: Path, pairs: int = 2) -> dict:
     """Render Principled and every variant ``pairs`` times; the section's data."""
     scene = scene_real.QUICK if quick else scene_real.SCENE
     blend = work / "product_shot_cost.blend"
-    scene_real._child("build", blend)
+    child(scene_real.SECTION, "build", blend)
     # warm-up, not counted: the HDRI's bake and the node group's first build (cached)
-    scene_real._child("render", blend, "converted", CONFIG, work / "cost-warm", 16, 1)
+    child(scene_real.SECTION, "render", blend, "converted", CONFIG, work / "cost-warm", 16, 1)
     times = {"principled": [], **{v: [] for v in VARIANTS}}
     for i in range(pairs):
         order = list(VARIANTS) if i % 2 == 0 else list(reversed(VARIANTS))
@@ -157,7 +159,7 @@ def bench_scene_cost(quick: bool, work: Path, pairs: int = 2) -> dict:
             side = "principled" if variant == "principled" else "converted"
             folder = work / f"cost-{i}-{len(times[variant])}-{variant.replace(' ', '-')}"
             args = ("render", blend, side, CONFIG, folder, scene["size"], scene["samples"])
-            r = scene_real._child(*args, variant, script=__file__)
+            r = child(SECTION, *args, variant)
             times[variant].append(r["cycles_render_seconds"])
             print(f"scene-cost: {variant}: {r['cycles_render_seconds']:.2f} s", flush=True)
     base = statistics.median(times["principled"])
@@ -187,17 +189,3 @@ def scene_cost_table(section: dict) -> list:
             f"{', '.join(f'{s:.2f}' for s in secs)} | {words[variant]} |"
         )
     return lines
-
-
-def main() -> None:
-    scene_real.standalone(
-        __doc__,
-        bench_scene_cost,
-        scene_cost_table,
-        apply_variant,
-        options=(("--pairs", {"type": int, "default": 2}),),
-    )
-
-
-if __name__ == "__main__":
-    main()

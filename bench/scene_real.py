@@ -1,8 +1,8 @@
 """The cost of the model in a real scene: a product shot with every material converted.
 
-    .venv-bpy<series>/bin/python bench/scene_real.py [--quick] [--pairs N]
+    ./scripts/dev.sh bench --only scene-real [--quick] [--pairs N] [--config NAME ...]
 
-(also ``scripts/bench.py --only scene-real``). The scene (built once, in a child process): a
+The scene (built once, in a child process): a
 floor with an image texture as its colour, a vase (white dielectric, its roughness an image
 texture), a polished gold sphere, a rough copper cube, a red plastic sphere; an Area light and
 Blender's forest.exr world; a perspective camera; 240x180 px, 64 samples. Five Principled BSDF
@@ -22,8 +22,9 @@ shading on for both sides) and per setting:
 The ratio is the median over pairs of converted / Principled of Cycles' render time (the path
 tracing, from the EXR's metadata); the sync time (the scene and shaders, OSL's compile and
 optimisation) and the conversion's time are given beside it. Writes bench/results.json's
-"scene-real" section and its table in bench/results.md (through scripts/bench.py), or, run on
-its own, prints the table.
+"scene-real" section and its table in bench/results.md (``--no-write``: prints the table
+only). Its child processes (``child_main``) also serve bench/scene_cost.py and
+bench/scene_samples.py.
 """
 
 from __future__ import annotations
@@ -31,16 +32,15 @@ from __future__ import annotations
 import json
 import os
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))  # run on its own, or as a child: bench.common, addon
-from bench.common import CACHE  # noqa: E402  (the bakes, the node group)
+sys.path.insert(0, str(ROOT))  # in a child: bench.common, addon
+from bench.common import child  # noqa: E402
 
+SECTION = "scene-real"
 SCENE = {"size": 240, "samples": 64}
 QUICK = {"size": 64, "samples": 4}
 CONFIGS = {  # name -> (implementation, OSL shading, settings)
@@ -209,41 +209,27 @@ def _count_nodes(tree, seen=None) -> int:
 # --- The driver -------------------------------------------------------------------------
 
 
-def _child(*args, script: str = __file__) -> dict:
-    """One child process (``script --child ARGS``): its RESULT line, with its wall time."""
-    cmd = [sys.executable, script, "--child", *map(str, args)]
-    env = dict(os.environ)
-    env.setdefault("CTLAB_CACHE", str(CACHE))
-    start = time.perf_counter()
-    # the child ends with os._exit (no atexit): its temporary folder, Blender's session folder
-    # in it, is one of ours, removed here
-    with tempfile.TemporaryDirectory(prefix="ctlab-bench-") as tmp:
-        p = subprocess.run(cmd, capture_output=True, text=True, env=dict(env, TMPDIR=tmp))
-    if p.returncode != 0:
-        raise SystemExit(f"bench: {' '.join(cmd)} failed:\n{(p.stderr or p.stdout)[-3000:]}")
-    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
-    out = json.loads(lines[-1][7:]) if lines else {}
-    out["process_seconds"] = round(time.perf_counter() - start, 2)
-    return out
-
-
 def bench_scene_real(quick: bool, work: Path, pairs: int = 2, configs=None) -> dict:
     """Render every configuration's pairs, alternating sides; the section's data."""
     scene = QUICK if quick else SCENE
     blend = work / "product_shot.blend"
-    _child("build", blend)
+    child(SECTION, "build", blend)
     runs, ratios, warm = {}, {}, {}
     for impl in dict.fromkeys(CONFIGS[c][0] for c in configs or CONFIGS):
         # warm-up, not counted: the HDRI's bake and the node group's first build (cached)
         config = next(c for c in configs or CONFIGS if CONFIGS[c][0] == impl)
-        warm[impl] = _child("render", blend, "converted", config, work / f"warm-{impl}", 16, 1)
+        warm[impl] = child(
+            SECTION, "render", blend, "converted", config, work / f"warm-{impl}", 16, 1
+        )
     for config in configs or CONFIGS:
         runs[config] = []
         for i in range(pairs):
             order = ("principled", "converted") if i % 2 == 0 else ("converted", "principled")
             for side in order:
                 folder = work / f"{config.replace(' ', '-')}-{i}-{side}"
-                r = _child("render", blend, side, config, folder, scene["size"], scene["samples"])
+                r = child(
+                    SECTION, "render", blend, side, config, folder, scene["size"], scene["samples"]
+                )
                 r["load"] = round(os.getloadavg()[0], 2)
                 runs[config].append(r)
                 print(
@@ -295,57 +281,19 @@ def scene_real_table(section: dict) -> list:
     return lines
 
 
-def child_main(after_convert=None) -> None:
-    """A child process: ``--child build PATH`` or ``--child render BLEND SIDE CONFIG OUT SIZE
-    SAMPLES [EXTRA ...]``; a converted render runs ``after_convert(*EXTRA)`` (a function of the
-    render's info, or None) after its conversion (bench/scene_cost.py's variants)."""
+def child_main(args: list, after_convert=None) -> None:
+    """A child process: ``build PATH`` or ``render BLEND SIDE CONFIG OUT SIZE SAMPLES [EXTRA
+    ...]``; a converted render runs ``after_convert(*EXTRA)`` (a function of the render's info,
+    or None) after its conversion (bench/scene_cost.py's variants, bench/scene_samples.py's
+    counts)."""
     import bpy
 
     bpy.utils.expose_bundled_modules()
-    if sys.argv[2] == "build":
-        _child_build(sys.argv[3])
+    if args[0] == "build":
+        _child_build(args[1])
     else:
-        blend, side, config, out, size, samples = sys.argv[3:9]
-        hook = after_convert(*sys.argv[9:]) if after_convert and side == "converted" else None
+        blend, side, config, out, size, samples = args[1:7]
+        hook = after_convert(*args[7:]) if after_convert and side == "converted" else None
         _child_render(blend, side, config, out, int(size), int(samples), hook)
     sys.stdout.flush()
     os._exit(0)  # bpy as a module can hang at exit (tests/conftest.py)
-
-
-def standalone(doc: str, bench, table, after_convert=None, options=()) -> None:
-    """A section run on its own (this module, scene_cost, scene_samples): a child process
-    with ``--child``; else ``--quick``, ``--json`` and ``options`` ((flag, argparse keywords),
-    passed to ``bench`` by their dest), the section in a temporary folder, its table
-    printed."""
-    if len(sys.argv) > 2 and sys.argv[1] == "--child":
-        child_main(after_convert)
-    import argparse
-
-    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="tiny renders (a smoke run)")
-    ap.add_argument("--json", type=Path, help="also write the section here")
-    for flag, keywords in options:
-        ap.add_argument(flag, **keywords)
-    args = vars(ap.parse_args())
-    quick, out = args.pop("quick"), args.pop("json")
-    with tempfile.TemporaryDirectory() as tmp:
-        section = bench(quick, Path(tmp), **args)
-    if out:
-        out.write_text(json.dumps(section, indent=2))
-    print("\n".join(table(section)))
-
-
-def main() -> None:
-    standalone(
-        __doc__,
-        bench_scene_real,
-        scene_real_table,
-        options=(
-            ("--pairs", {"type": int, "default": 2}),
-            ("--config", {"nargs": "+", "choices": list(CONFIGS), "dest": "configs"}),
-        ),
-    )
-
-
-if __name__ == "__main__":
-    main()

@@ -4,9 +4,9 @@ tracing carry the noise? And its two estimators: every technique of the world an
 light per sample (the lab's), or one technique per sample (the one-sample model, the scene
 transport's default: osl/ct_correction.h)?
 
-    .venv-bpy<series>/bin/python bench/scene_samples.py [--quick]
+    ./scripts/dev.sh bench --only scene-samples [--quick]
 
-(also ``scripts/bench.py --only scene-samples``). bench/scene_real.py's product shot, every
+bench/scene_real.py's product shot, every
 material converted to the OSL shader (its "osl default": Cook-Torrance G, Disney diffuse,
 energy compensated), rendered with each estimator and ``Env Samples`` in ROWS at the scene's
 samples per pixel, and once converged (CONVERGED_SAMPLES, every technique, 4 + 4, another
@@ -26,7 +26,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from bench import scene_real  # noqa: E402
+from bench.common import child  # noqa: E402
 
+SECTION = "scene-samples"
 CONFIG = "osl default"
 # (estimator, One-Sample Correction, Env Samples); the first is the cost's unit
 ROWS = (
@@ -77,21 +79,21 @@ def bench_scene_samples(quick: bool, work: Path) -> dict:
 
     scene = scene_real.QUICK if quick else scene_real.SCENE
     blend = work / "product_shot_samples.blend"
-    scene_real._child("build", blend)
+    child(scene_real.SECTION, "build", blend)
     size, spp = scene["size"], scene["samples"]
     converged = QUICK_CONVERGED if quick else CONVERGED_SAMPLES
     ref_dir = work / "samples-reference"
     args = ("render", blend, "converted", CONFIG, ref_dir, size, converged, 4, REFERENCE_SEED)
-    scene_real._child(*args, script=__file__)
+    child(SECTION, *args)
     reference = _image(ref_dir)
     folder = work / "samples-principled"
-    principled = scene_real._child("render", blend, "principled", CONFIG, folder, size, spp)
+    principled = child(scene_real.SECTION, "render", blend, "principled", CONFIG, folder, size, spp)
     base = principled["cycles_render_seconds"]
     rows = {}
     for estimator, one_sample, count in ROWS:
         folder = work / f"samples-{one_sample}-{count}"
         args = ("render", blend, "converted", CONFIG, folder, size, spp, count, 0, one_sample)
-        r = scene_real._child(*args, script=__file__)
+        r = child(SECTION, *args)
         image = np.asarray(read_image(folder / "render.exr"), dtype=np.float64)
         mse = float(np.mean((_image(folder) - reference) ** 2))
         negative = int((image[..., :3] < 0).any(axis=-1).sum())
@@ -141,11 +143,3 @@ def scene_samples_table(section: dict) -> list:
             f"{row.get('negative_pixels', '–')} |"
         )
     return lines
-
-
-def main() -> None:
-    scene_real.standalone(__doc__, bench_scene_samples, scene_samples_table, with_samples)
-
-
-if __name__ == "__main__":
-    main()

@@ -7,19 +7,24 @@ Every render runs in its own process (scripts/ctlab.py render), as an artist's w
 render time is Cycles' synchronisation plus render as scene.json records them, and the
 process's wall time is reported beside it.
 
-    ./scripts/dev.sh bench [--quick] [--only SECTION ...]
+    ./scripts/dev.sh bench [--quick] [--only SECTION ...] [--pairs N] [--config NAME ...]
+                           [--no-write]
 
 Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only``
 re-runs the named sections (render, error, main, bake, scene, graph, scene-real: every
 material of a product shot converted, scene-cost: what each part of the converted group
 costs there, and scene-samples: the OSL correction's samples at equal error) and keeps the
 others from results.json. Each section is a module of bench/ (bench/__init__.py); this script
-is the entry point: the options, which sections run, and the results written.
+is the benchmark's one entry point: the options, which sections run, the results written,
+and the sections' child processes (``--child SECTION ARGS``, bench/common.py ``child``).
+``--pairs`` and ``--config`` go to the sections that take them (scene-real, scene-cost);
+``--no-write`` prints the tables and leaves results.json and results.md as they are.
 Converged images for the error study are cached in out/bench-cache (keyed by Blender's
 version, the renderer, the scene and the model's sources).
 """
 
 import argparse
+import inspect
 import json
 import os
 import platform
@@ -108,7 +113,17 @@ def machine() -> dict:
     }
 
 
+# A section's child process: the hook its converted renders run after the conversion
+CHILD_HOOKS = {
+    "scene-real": None,
+    "scene-cost": scene_cost.apply_variant,
+    "scene-samples": scene_samples.with_samples,
+}
+
+
 def main():
+    if sys.argv[1:2] == ["--child"]:
+        scene_real.child_main(sys.argv[3:], CHILD_HOOKS[sys.argv[2]])
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="smaller renders (a smoke run)")
     ap.add_argument(
@@ -117,7 +132,17 @@ def main():
         choices=list(SECTIONS),
         help="run these sections, keep the others from results.json",
     )
+    ap.add_argument("--pairs", type=int, help="A/B pairs (scene-real, scene-cost; default 2)")
+    ap.add_argument(
+        "--config",
+        nargs="+",
+        choices=list(scene_real.CONFIGS),
+        dest="configs",
+        help="scene-real's configurations (default: all)",
+    )
+    ap.add_argument("--no-write", action="store_true", help="print the tables only")
     args = ap.parse_args()
+    extra = {k: v for k, v in (("pairs", args.pairs), ("configs", args.configs)) if v is not None}
     results = {}
     if args.only and (OUT / "results.json").is_file():
         results = json.loads((OUT / "results.json").read_text())
@@ -130,10 +155,13 @@ def main():
         for section, (_title, run, _table) in SECTIONS.items():
             if args.only and section not in args.only:
                 continue
-            results[section] = run(args.quick, work)
+            takes = inspect.signature(run).parameters
+            options = {k: v for k, v in extra.items() if k in takes}
+            results[section] = run(args.quick, work, **options)
             results[section]["machine"] = results["machine"]
-    OUT.mkdir(exist_ok=True)
-    (OUT / "results.json").write_text(json.dumps(results, indent=2))
+    if not args.no_write:
+        OUT.mkdir(exist_ok=True)
+        (OUT / "results.json").write_text(json.dumps(results, indent=2))
 
     def described(m):
         return (
@@ -160,7 +188,8 @@ def main():
     for section, (title, _run, table) in SECTIONS.items():
         if section in results:
             lines += head(title, section) + table(results[section]) + [""]
-    (OUT / "results.md").write_text("\n".join(lines))
+    if not args.no_write:
+        (OUT / "results.md").write_text("\n".join(lines))
     print("\n".join(lines))
 
 
