@@ -2,10 +2,11 @@
 Material): each material's surface values, switches and the objects it is on, and the image
 textures wired into albedo, metallic, smoothness and normal, with their colour spaces.
 
-Either implementation (model_node finds the node). What a texture may be: an Image Texture
-linked straight into an input; on metallic or smoothness also through a ``1 - x`` Math node
-(Subtract, first value 1: a roughness map, as conversion wires it); on the normal through a
-Normal Map node in tangent space. Any other node feeding an input is not carried: the
+Either implementation (model_node finds the node). What a texture may be (``_texture``): an
+Image Texture linked straight into an input, or through the nodes conversion and the Unity
+import wire (a ``1 - x`` for a roughness map; a Separate Color's Red, an Alpha output and a
+Multiply for Unity's packed map; a Mix (Multiply) by ``_Color``; a Normal Map node in tangent
+space; a Mapping node for tiling). Any other node feeding an input is not carried: the
 socket's own value is written and a note says so. An image whose file is missing is a
 UserError (one line); a packed image is written out from the file's data.
 """
@@ -94,37 +95,129 @@ def _colorspace(image: bpy.types.Image) -> str:
     return COLORSPACES.get(name, "srgb_texture" if "sRGB" in name else "")
 
 
+def _constant(sock) -> bool:
+    return not sock.is_linked
+
+
+def _from(sock):
+    """The node and output socket linked into ``sock``."""
+    link = sock.links[0]
+    return link.from_node, link.from_socket
+
+
+def _tint(node):
+    """A Mix node (colour, Multiply, factor 1) of an input times a constant colour: (the
+    linked input, the colour), else None."""
+    if node.bl_idname != "ShaderNodeMix" or node.data_type != 'RGBA':
+        return None
+    if node.blend_type != 'MULTIPLY' or node.clamp_result:
+        return None
+    ins = {s.identifier: s for s in node.inputs}
+    fac, a, b = ins.get("Factor_Float"), ins.get("A_Color"), ins.get("B_Color")
+    if fac is None or fac.is_linked or abs(fac.default_value - 1.0) > 1e-6:
+        return None
+    for linked, const in ((a, b), (b, a)):
+        if linked.is_linked and _constant(const):
+            return linked, tuple(const.default_value[:3])
+    return None
+
+
+def _scale(node):
+    """A Math node multiplying an input by a constant: (the linked input, the constant)."""
+    if node.bl_idname != "ShaderNodeMath" or node.operation != 'MULTIPLY' or node.use_clamp:
+        return None
+    a, b = node.inputs[0], node.inputs[1]
+    for linked, const in ((a, b), (b, a)):
+        if linked.is_linked and _constant(const):
+            return linked, float(const.default_value)
+    return None
+
+
+def _one_minus(node):
+    """A Math node 1 - x (Subtract, first value 1): the linked input."""
+    if node.bl_idname != "ShaderNodeMath" or node.operation != 'SUBTRACT' or node.use_clamp:
+        return None
+    first, second = node.inputs[0], node.inputs[1]
+    if _constant(first) and abs(first.default_value - 1.0) < 1e-6 and second.is_linked:
+        return second
+    return None
+
+
+def _uv(tex_node):
+    """The image's UV mapping: (scale, offset) from a Mapping node (Point, no rotation) on
+    the UV map (or on nothing: the UV map), ((1, 1), (0, 0)) without one; None when another
+    node maps it."""
+    vec = tex_node.inputs["Vector"]
+    if not vec.is_linked:
+        return (1.0, 1.0), (0.0, 0.0)
+    node, out = _from(vec)
+    if node.bl_idname == "ShaderNodeTexCoord" and out.name == "UV":
+        return (1.0, 1.0), (0.0, 0.0)
+    if node.bl_idname != "ShaderNodeMapping" or node.vector_type != 'POINT':
+        return None
+    ins = node.inputs
+    if any(s.is_linked for s in ins if s.name != "Vector") or any(ins["Rotation"].default_value):
+        return None
+    src = ins["Vector"]
+    if src.is_linked:
+        coords, out = _from(src)
+        if coords.bl_idname != "ShaderNodeTexCoord" or out.name != "UV":
+            return None
+    scale, loc = ins["Scale"].default_value, ins["Location"].default_value
+    return (float(scale[0]), float(scale[1])), (float(loc[0]), float(loc[1]))
+
+
 def _texture(mat, key: str, sock, files: dict, notes: list) -> Texture | None:
-    """The texture feeding ``sock``, or None (a value; a note when another node feeds it)."""
+    """The texture feeding ``sock``, or None (a value; a note when another node feeds it).
+    The shapes read (network.Texture): on the albedo an Image Texture's Color, times a
+    constant colour (Mix, Multiply); on metallic and smoothness its Color, its Alpha or the
+    Red of a Separate Color of it, then ``1 - x`` and a Multiply by a constant; on the normal
+    a tangent-space Normal Map node of it; each image on the UV map, through a Mapping node
+    (Point) or not."""
     if not sock.is_linked:
         return None
-    src = sock.links[0].from_node
-    invert, strength = False, 1.0
+    fed_by = sock.links[0].from_node
+    src, out = _from(sock)
+    found = {}
     if key == "normal":
         if src.bl_idname == "ShaderNodeNewGeometry":
             return None  # the geometry's normal: the default
         if src.bl_idname == "ShaderNodeNormalMap" and src.space == 'TANGENT':
-            strength = float(src.inputs["Strength"].default_value)
+            found["strength"] = float(src.inputs["Strength"].default_value)
             color = src.inputs["Color"]
-            src = color.links[0].from_node if color.is_linked else None
-    elif (
-        key in ("metallic", "smoothness")
-        and src.bl_idname == "ShaderNodeMath"
-        and src.operation == 'SUBTRACT'
-        and not src.inputs[0].is_linked
-        and abs(src.inputs[0].default_value - 1.0) < 1e-6
-        and src.inputs[1].is_linked
-    ):
-        invert = True
-        src = src.inputs[1].links[0].from_node
-    if src is None or src.bl_idname != "ShaderNodeTexImage" or src.image is None:
+            src, out = _from(color) if color.is_linked else (None, None)
+    elif key == "albedo":
+        tint = _tint(src)
+        if tint is not None:
+            found["tint"] = tint[1]
+            src, out = _from(tint[0])
+    else:
+        scaled = _scale(src)
+        if scaled is not None:
+            found["scale"] = scaled[1]
+            src, out = _from(scaled[0])
+        inverted = _one_minus(src)
+        if inverted is not None:
+            found["invert"] = True
+            src, out = _from(inverted)
+        if src.bl_idname == "ShaderNodeSeparateColor" and src.mode == 'RGB' and out.name == "Red":
+            found["channel"] = "r"
+            color = src.inputs["Color"]
+            src, out = _from(color) if color.is_linked else (None, None)
+        elif src.bl_idname == "ShaderNodeTexImage" and out.name == "Alpha":
+            found["channel"] = "a"
+    uv = _uv(src) if src is not None and src.bl_idname == "ShaderNodeTexImage" else None
+    if src is None or src.bl_idname != "ShaderNodeTexImage" or src.image is None or uv is None:
         notes.append(
-            f"{mat.name}: {key} is fed by {sock.links[0].from_node.name!r}, which the export "
-            "cannot carry; the socket's own value is written"
+            f"{mat.name}: {key} is fed by {fed_by.name!r}, which the export cannot carry; the "
+            "socket's own value is written"
         )
         return None
+    if out.name == "Alpha" and found.get("channel") != "a":
+        notes.append(f"{mat.name}: {key} reads an image's Alpha, which the export cannot carry")
+        return None
     name = _image_file(src.image, mat, files)
-    return Texture(name, _colorspace(src.image), invert, strength)
+    return Texture(name, _colorspace(src.image), uv_scale=uv[0], uv_offset=uv[1], **found)
 
 
 def read_material(mat: bpy.types.Material, node, files: dict, notes: list) -> Material:

@@ -55,15 +55,19 @@ def read_hdri(path, repair: bool = False):
     return pixels, count
 
 
-def read_pixels(path, what: str = "image", check=None, need: int = 3) -> np.ndarray:
-    """An image file's first three channels as float32 (height, width, 3), read whole: an
-    unreadable, truncated or corrupt file is a UserError naming it as ``what``, never zeros.
-    ``check(spec, OIIO)`` may refuse the file from its header before the pixels are read.
-    ``need``: the fewest channels taken (an image of fewer than three then gives its own
-    count, (height, width, 1 or 2))."""
+def read_pixels(path, what: str = "image", check=None, need: int = 3, keep: int = 3) -> np.ndarray:
+    """An image file's first ``keep`` channels (at most) as float32 (height, width, k), read
+    whole: an unreadable, truncated or corrupt file is a UserError naming it as ``what``,
+    never zeros. ``check(spec, OIIO)`` may refuse the file from its header before the pixels
+    are read. ``need``: the fewest channels taken (an image of fewer than three then gives
+    its own count, (height, width, 1 or 2)). The values are the file's: colour never
+    multiplied by alpha (OpenImageIO would associate a PNG's), as Blender's Channel Packed
+    alpha reads them."""
     path = Path(path)
     OIIO = oiio()
-    inp = OIIO.ImageInput.open(str(path))
+    config = OIIO.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    inp = OIIO.ImageInput.open(str(path), config)
     if inp is None:
         raise UserError(
             f"{what} unreadable: {path} ({OIIO.geterror().strip() or 'unknown format'})"
@@ -76,7 +80,7 @@ def read_pixels(path, what: str = "image", check=None, need: int = 3) -> np.ndar
             raise UserError(
                 f"{what} has {spec.nchannels} channel(s): {path}; an RGB image is needed"
             )
-        k = min(spec.nchannels, 3)
+        k = min(spec.nchannels, keep)
         pixels = inp.read_image(0, 0, 0, k, OIIO.FLOAT)
         failed = inp.has_error
         detail = inp.geterror().strip() if failed else ""

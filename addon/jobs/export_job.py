@@ -23,6 +23,7 @@ from pathlib import Path
 from ..blender import material_export
 from ..core import files
 from ..core.export import gltf, materialx, network, usd
+from ..core.export.maps import texture_values
 from ..core.errors import UserError
 from ..core.gate import Gate, check_name, read_input
 from ..core.paths import safe_name
@@ -66,9 +67,13 @@ def _texture_label(f) -> str:
 
 
 def _decode(f, scratch: Path):
-    """The texture's pixels (float, h x w x 3), read before anything is written: a file that
-    is not a readable image is one line naming it (the input, never the output)."""
-    from ..core.compare import read_image
+    """The texture's pixels (float, h x w x 3, or 4 with its alpha; the file's values, colour
+    not multiplied by alpha), read before anything is written: a file that is not a readable
+    image is one line naming it (the input, never the output)."""
+    from ..core.hdri import read_pixels
+
+    def read_image(path):
+        return read_pixels(path, "image", keep=4)
 
     path = Path(f.source) if f.source else scratch / f"packed{Path(f.name).suffix}"
     if not f.source:
@@ -170,14 +175,13 @@ def metallic_roughness_images(materials: list, pixels: dict) -> dict:
         name = gltf.metallic_roughness_name(mat, materials)
         if name is None:
             continue
-        maps = {
-            key: pixels[mat.textures[key].file][..., 0]
+        maps = {  # the inputs' values (core/export/maps.py): smoothness, never roughness
+            key: texture_values(pixels[mat.textures[key].file], mat.textures[key])
             for key in ("metallic", "smoothness")
             if key in mat.textures
         }
-        invert = "smoothness" in mat.textures and mat.textures["smoothness"].invert
         images[name] = gltf.metallic_roughness_pixels(
-            maps.get("metallic"), maps.get("smoothness"), invert
+            maps.get("metallic"), maps.get("smoothness"), False
         )
     return images
 

@@ -40,6 +40,14 @@ def _srgb(c):
     return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
 
 
+def _png(path):
+    """An 8-bit PNG's values, alpha unassociated, rows top first (as the fixtures write
+    them)."""
+    from addon.core.hdri import read_pixels
+
+    return read_pixels(path, keep=4)
+
+
 def _linked(sock):
     assert sock.is_linked, sock.name
     return sock.links[0].from_node, sock.links[0].from_socket
@@ -313,6 +321,46 @@ def test_export_operator_round_trip(addon, tmp_path):
     for name in ("Old", "Missing"):
         assert back[name].metallic == pytest.approx(first[name].metallic, abs=1 / 255)
         assert back[name].smoothness == pytest.approx(first[name].smoothness, abs=1 / 255)
+    # Brick: _Color times _MainTex (a Mix), the packed map's R and A x _GlossMapScale 0.8
+    # (Separate Color, Alpha, Multiply), the normal map of strength 0.5 and _MainTex's
+    # tiling (a Mapping node) go back out as Unity's own properties and one packed map
+    brick, orig = back["Brick"], first["Brick"]
+    assert brick.albedo == pytest.approx(orig.albedo, abs=1 / 255)
+    assert brick.albedo_map.path.endswith("albedo.png") and brick.albedo_map.srgb
+    assert (brick.tiling, brick.offset) == ((2.0, 3.0), (0.25, 0.5))
+    assert brick.normal_map is not None and brick.bump_scale == pytest.approx(0.5)
+    assert brick.smoothness_from == "metallic_map" and brick.gloss_map_scale == 1.0
+    assert not brick.metallic_map.srgb  # written decoded: linear
+    metal = fx.metal_pixels()
+    packed = _png(brick.metallic_map.path)
+    decoded = np.vectorize(_srgb)(metal[..., 0])  # its .meta says sRGB: Unity decodes R
+    assert packed[..., 0] == pytest.approx(decoded, abs=1 / 255)
+    assert packed[..., 3] == pytest.approx(metal[..., 3] * 0.8, abs=1 / 255)
+    # AlbedoAlpha: smoothness = _MainTex's A x 0.5, metallic = the metallic map's R
+    aa = back["AlbedoAlpha"]
+    assert aa.smoothness_from == "metallic_map" and aa.albedo_map is not None
+    packed = _png(aa.metallic_map.path)
+    assert packed[..., 0] == pytest.approx(decoded, abs=1 / 255)
+    assert packed[..., 3] == pytest.approx(fx.albedo_alpha_pixels()[..., 3] * 0.5, abs=1 / 255)
+    # the other formats carry the same shapes: MaterialX validates, glTF has the transform
+    assert bpy.ops.ctlab.export_materialx(directory=str(tmp_path / "Mtlx")) == {'FINISHED'}
+    from materialx_check import materialx_check
+
+    checked = materialx_check([tmp_path / "Mtlx" / "Brick.mtlx"])
+    assert checked[str(tmp_path / "Mtlx" / "Brick.mtlx")]["valid"], checked
+    text = (tmp_path / "Mtlx" / "Brick.mtlx").read_text()
+    assert 'type="vector2" value="2, 3"' in text and 'type="vector2" value="0.25, 0.5"' in text
+    from addon.blender import material_export as me
+    from addon.core.export import gltf
+
+    mats = [bpy.data.materials["Brick"]]
+    records, _, notes = me.read_materials(mats)
+    assert not notes, notes
+    doc = gltf.gltf_document(records)
+    info = doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]
+    transform = info["extensions"]["KHR_texture_transform"]
+    assert transform == {"offset": [0.25, 1 - 3 - 0.5], "scale": [2.0, 3.0]}
+    assert doc["extensionsUsed"] == ["KHR_texture_transform"]
     with pytest.raises(RuntimeError, match="ctlab did not write"):
         (tmp_path / "Mine").mkdir()
         (tmp_path / "Mine" / "Brick.mat").write_text("mine\n")

@@ -4,7 +4,11 @@ packed into one image as glTF wants them, and what glTF cannot carry in extras."
 
 from __future__ import annotations
 
+import json
+
 from .network import DIFFUSE_SCALE, Material, export_names, not_carried, utf8_text
+
+TRANSFORM = "KHR_texture_transform"  # a texture's UV mapping (Khronos' ratified extension)
 
 
 def metallic_roughness_name(mat: Material, materials=None) -> str | None:
@@ -66,19 +70,21 @@ def gltf_material(mat: Material, texture_index, packed=None) -> dict:
     }
     out = {"name": utf8_text(mat.name), "pbrMetallicRoughness": pbr}
     if "albedo" in mat.textures:
-        pbr["baseColorFactor"] = [1.0, 1.0, 1.0, 1.0]
-        pbr["baseColorTexture"] = {"index": texture_index(mat.textures["albedo"].file)}
+        tex = mat.textures["albedo"]
+        pbr["baseColorFactor"] = [_f7(c) for c in (tex.tint or (1.0, 1.0, 1.0))[:3]] + [1.0]
+        pbr["baseColorTexture"] = _info(texture_index(tex.file), tex)
     if packed is None:
         packed = metallic_roughness_name(mat)
     if packed is not None:
-        pbr["metallicRoughnessTexture"] = {"index": texture_index(packed)}
+        first = mat.textures.get("metallic") or mat.textures.get("smoothness")
+        pbr["metallicRoughnessTexture"] = _info(texture_index(packed), first)
         if "metallic" in mat.textures:
             pbr["metallicFactor"] = 1.0
         if "smoothness" in mat.textures:
             pbr["roughnessFactor"] = 1.0
     if "normal" in mat.textures:
         tex = mat.textures["normal"]
-        out["normalTexture"] = {"index": texture_index(tex.file), "scale": _f7(tex.strength)}
+        out["normalTexture"] = dict(_info(texture_index(tex.file), tex), scale=_f7(tex.strength))
     out["extras"] = {
         "cook_torrance_lab": {
             "g_model": mat.g_model,
@@ -104,7 +110,23 @@ def gltf_not_carried(mat: Material) -> list:
     if mat.diffuse_model != "lambert":
         out.append("Burley (Disney) diffuse (glTF's diffuse is Lambert)")
     out.append(f"the diffuse scale {DIFFUSE_SCALE:g} (glTF weights its Lambert diffuse by 1 - F)")
+    maps = [mat.textures[k] for k in ("metallic", "smoothness") if k in mat.textures]
+    if len({(t.uv_scale, t.uv_offset) for t in maps}) > 1:
+        out.append("the smoothness map's UV mapping (packed with the metallic map, read with its)")
     return out
+
+
+def _info(index: int, tex) -> dict:
+    """A textureInfo: the texture's index, and its UV mapping as KHR_texture_transform.
+    Blender's UV has v up from the image's bottom, glTF's down from its top (v_gltf = 1 -
+    v_blender), so Blender's UV * s + o is glTF's UV * s + (o_u, 1 - s_v - o_v)."""
+    info = {"index": index}
+    if tex is not None and tex.uv_mapped:
+        (su, sv), (ou, ov) = tex.uv_scale, tex.uv_offset
+        info["extensions"] = {
+            TRANSFORM: {"offset": [_f7(ou), _f7(1.0 - sv - ov)], "scale": [_f7(su), _f7(sv)]}
+        }
+    return info
 
 
 def gltf_document(materials: list) -> dict:
@@ -129,4 +151,6 @@ def gltf_document(materials: list) -> dict:
     }
     if images:
         doc["images"], doc["textures"] = images, textures
+    if any(TRANSFORM in json.dumps(m) for m in doc["materials"]):
+        doc["extensionsUsed"] = [TRANSFORM]
     return doc

@@ -54,15 +54,29 @@ SURFACE_KEYS = ("albedo", "metallic", "smoothness", "normal")
 
 @dataclass(frozen=True)
 class Texture:
-    """An image file that feeds a surface input. ``file`` is its name inside the export
-    folder (textures/NAME); ``colorspace`` MaterialX's name ("" for raw data); ``invert``: a
-    ``1 - x`` between the image and the input (a roughness map on smoothness); ``strength``:
-    a normal map's."""
+    """An image file that feeds a surface input, and what lies between them. ``file`` is its
+    name inside the export folder (textures/NAME); ``colorspace`` MaterialX's name ("" for
+    raw data). Between the image and the input, in this order (core/export/maps.py reads a
+    texel so): ``channel`` ("" the colour, "r" its red through a Separate Color node, "a" the
+    image's Alpha output); ``invert``, a ``1 - x`` (a roughness map on smoothness); ``scale``,
+    a Math Multiply by a constant (Unity's ``_GlossMapScale``); ``tint``, the albedo times a
+    constant colour (a Mix node, Multiply: Unity's ``_Color``); ``strength``, a normal map's.
+    ``uv_scale`` and ``uv_offset``: a Mapping node (Point) on the UV map, UV * scale +
+    offset."""
 
     file: str
     colorspace: str = ""
     invert: bool = False
     strength: float = 1.0
+    channel: str = ""
+    scale: float = 1.0
+    tint: tuple | None = None
+    uv_scale: tuple = (1.0, 1.0)
+    uv_offset: tuple = (0.0, 0.0)
+
+    @property
+    def uv_mapped(self) -> bool:
+        return tuple(self.uv_scale) != (1.0, 1.0) or tuple(self.uv_offset) != (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -303,46 +317,49 @@ def model_graph() -> list:
 
 def texture_nodes(mat: Material) -> tuple:
     """The material's texture nodes and, per surface input, the node that feeds it:
-    (nodes, {key: node name})."""
+    (nodes, {key: node name}). Between an image and its input, as Texture says: the Alpha
+    (an ``extract`` of a color4 image), ``1 - x``, the scale and the tint (``multiply``); a
+    normal map through ``normalmap``; the UV mapping as the image's ``texcoord``: UV * scale
+    + offset (``texcoord``, ``multiply``, ``add``)."""
     nodes, feeds = [], {}
     for key in SURFACE_KEYS:
         tex = mat.textures.get(key)
         if tex is None:
             continue
+
+        def add(name, category, type_, inputs, nodedef_type=None):
+            nodedef = f"ND_{category}_{nodedef_type or type_}"
+            nodes.append(Node(name, category, type_, nodedef, inputs))
+            feeds[key] = name  # noqa: B023  (key: this loop's)
+            return name
+
         kind = {"albedo": "color3", "normal": "vector3"}.get(key, "float")
-        image = f"{key}_image"
-        nodes.append(
-            Node(
-                image,
-                "image",
-                kind,
-                f"ND_image_{kind}",
-                [Input("file", "filename", value=tex.file, colorspace=tex.colorspace)],
-            )
-        )
-        feeds[key] = image
+        image_kind = "color4" if tex.channel == "a" else kind
+        inputs = [Input("file", "filename", value=tex.file, colorspace=tex.colorspace)]
+        if tex.uv_mapped:  # UV * scale + offset, as Blender's Mapping node (Point)
+            uv = add(f"{key}_uv", "texcoord", "vector2", [])
+            scale = [_n("in1", "vector2", uv), _v("in2", "vector2", tuple(tex.uv_scale))]
+            uv = add(f"{key}_uv_scale", "multiply", "vector2", scale)
+            offset = [_n("in1", "vector2", uv), _v("in2", "vector2", tuple(tex.uv_offset))]
+            uv = add(f"{key}_uv_offset", "add", "vector2", offset)
+            inputs.append(_n("texcoord", "vector2", uv))
+        out = add(f"{key}_image", "image", image_kind, inputs)
+        if tex.channel == "a":
+            alpha = [_n("in", "color4", out), _v("index", "integer", 3)]
+            out = add(f"{key}_alpha", "extract", "float", alpha, "color4")
         if key == "normal":
-            nodes.append(
-                Node(
-                    "normal_map",
-                    "normalmap",
-                    "vector3",
-                    "ND_normalmap_float",
-                    [_n("in", "vector3", image), _v("scale", "float", float(tex.strength))],
-                )
-            )
-            feeds[key] = "normal_map"
-        elif tex.invert:
-            nodes.append(
-                Node(
-                    f"{key}_invert",
-                    "subtract",
-                    "float",
-                    "ND_subtract_float",
-                    [_v("in1", "float", 1.0), _n("in2", "float", image)],
-                )
-            )
-            feeds[key] = f"{key}_invert"
+            strength = _v("scale", "float", float(tex.strength))
+            add("normal_map", "normalmap", "vector3", [_n("in", "vector3", out), strength], "float")
+            continue
+        if tex.invert:
+            one_minus = [_v("in1", "float", 1.0), _n("in2", "float", out)]
+            out = add(f"{key}_invert", "subtract", "float", one_minus)
+        if tex.scale != 1.0:
+            scaled = [_n("in1", "float", out), _v("in2", "float", float(tex.scale))]
+            out = add(f"{key}_scale", "multiply", "float", scaled)
+        if key == "albedo" and tex.tint is not None:
+            tinted = [_n("in1", "color3", out), _v("in2", "color3", tuple(tex.tint[:3]))]
+            add(f"{key}_tint", "multiply", "color3", tinted)
     return nodes, feeds
 
 

@@ -35,6 +35,7 @@ def flat_network(mat: Material) -> tuple:
 USD_TYPES = {
     "float": "float",
     "color3": "color3f",
+    "color4": "color4f",
     "vector2": "float2",
     "vector3": "float3",
     "integer": "int",

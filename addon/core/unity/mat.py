@@ -20,6 +20,7 @@ import hashlib
 import re
 
 from ..export.network import Material, export_names, file_stem, fmt_float, utf8_text
+from ..export.maps import texture_values
 from ..export.network import TEXTURES
 from .read import BUILTIN_GUID, STANDARD, TEXTURE_FILE_ID
 from .standard import linear_to_srgb
@@ -122,11 +123,14 @@ def mat_text(
     metallic_gloss_map: str | None = None,
     bump_map: str | None = None,
     bump_scale: float = 1.0,
+    tiling=(1.0, 1.0),
+    offset=(0.0, 0.0),
 ) -> str:
     """A Standard (metallic) ``.mat``: ``albedo`` linear (written sRGB-encoded as
     ``_Color``), the textures by guid (None: none), ``_GlossMapScale`` 1 and
-    ``_SmoothnessTextureChannel`` 0 (smoothness in the metallic-gloss map's A), and the
-    keywords Unity sets for the assigned maps."""
+    ``_SmoothnessTextureChannel`` 0 (smoothness in the metallic-gloss map's A), the keywords
+    Unity sets for the assigned maps, and ``_MainTex``'s ``tiling`` and ``offset`` (Standard
+    reads every map with them)."""
     keywords = []
     if metallic_gloss_map:
         keywords.append("_METALLICGLOSSMAP")
@@ -166,11 +170,13 @@ def mat_text(
         "    m_TexEnvs:",
     ]
     for prop in _TEX_ENVS:
+        sx, sy = tiling if prop == "_MainTex" else (1.0, 1.0)
+        ox, oy = offset if prop == "_MainTex" else (0.0, 0.0)
         lines += [
             f"    - {prop}:",
             f"        m_Texture: {_texture_ref(textures.get(prop))}",
-            "        m_Scale: {x: 1, y: 1}",
-            "        m_Offset: {x: 0, y: 0}",
+            f"        m_Scale: {{x: {_number(sx)}, y: {_number(sy)}}}",
+            f"        m_Offset: {{x: {_number(ox)}, y: {_number(oy)}}}",
         ]
     lines.append("    m_Floats:")
     lines += [f"    - {prop}: {_number(value)}" for prop, value in floats.items()]
@@ -303,23 +309,17 @@ def metallic_gloss_pixels(metallic, smoothness, metallic_value=0.0, smoothness_v
     return np.stack([r, r, r, a], axis=-1).astype(np.float32)
 
 
-def _decoded(pixels, texture):
-    """One channel of a map as the model reads it: R, sRGB-decoded where the image is
-    sRGB (Blender decodes it before the socket), ``1 - x`` where the material inverts it."""
-    import numpy as np
-
-    r = np.asarray(pixels, np.float64)[..., 0]
-    if texture.colorspace == "srgb_texture":
-        r = np.where(r <= 0.04045, r / 12.92, ((r + 0.055) / 1.055) ** 2.4)
-    if texture.invert:
-        r = 1.0 - r
-    return r.astype(np.float32)
-
-
 def unity_not_carried(mat: Material) -> list:
     """What of the material Unity's Standard shader does not carry, in words (Standard is
-    the model with Unity's Smith joint G, Disney diffuse, single scattering)."""
+    the model with Unity's Smith joint G, Disney diffuse, single scattering; it reads every
+    map with ``_MainTex``'s tiling and offset, so only one UV mapping is carried)."""
     out = []
+    if len({(t.uv_scale, t.uv_offset) for t in mat.textures.values()}) > 1:
+        tiling, offset = _uv_of(mat)
+        out.append(
+            "maps with different UV mappings (Standard reads all of them with _MainTex's; "
+            f"tiling {tiling} and offset {offset} written)"
+        )
     if mat.g_model != "unity_smith_joint":
         out.append(f"G {mat.g_model} (Standard uses Unity's Smith joint approximation)")
     if mat.diffuse_model != "disney":
@@ -371,7 +371,7 @@ def unity_outputs(materials, texture_names=(), pixels=None, namespace: str = "")
         if "metallic" in tex or "smoothness" in tex:
             packed = _packed_name(stem, used)
             maps = {
-                key: _decoded(_channels(pixels, tex[key].file), tex[key])
+                key: texture_values(_channels(pixels, tex[key].file), tex[key])
                 for key in ("metallic", "smoothness")
                 if key in tex
             }
@@ -380,15 +380,18 @@ def unity_outputs(materials, texture_names=(), pixels=None, namespace: str = "")
             )
             out[packed] = (PNG_RGBA, image)
             out[f"{packed}.meta"] = texture_meta(guid(packed, namespace), False).encode()
+        tiling, offset = _uv_of(mat)
         text = mat_text(
             mat.name,
-            albedo=(1.0, 1.0, 1.0) if main else mat.albedo,
+            albedo=(tex["albedo"].tint or (1.0, 1.0, 1.0)) if main else mat.albedo,
             metallic=mat.metallic,
             smoothness=mat.smoothness,
             main_tex=guid(main, namespace) if main else None,
             metallic_gloss_map=guid(packed, namespace) if packed else None,
             bump_map=guid(bump, namespace) if bump else None,
             bump_scale=tex["normal"].strength if bump else 1.0,
+            tiling=tiling,
+            offset=offset,
         )
         out[f"{stem}.mat"] = text.encode("utf-8")
         out[f"{stem}.mat.meta"] = material_meta(guid(f"{stem}.mat", namespace)).encode()
@@ -403,6 +406,15 @@ def referenced_textures(materials) -> set:
     return {
         m.textures[key].file for m in materials for key in ("albedo", "normal") if key in m.textures
     }
+
+
+def _uv_of(mat: Material) -> tuple:
+    """The UV mapping written as ``_MainTex``'s: the albedo map's, else the first map's."""
+    order = [
+        mat.textures[k] for k in ("albedo", "normal", "metallic", "smoothness") if k in mat.textures
+    ]
+    first = order[0] if order else None
+    return (tuple(first.uv_scale), tuple(first.uv_offset)) if first else ((1.0, 1.0), (0.0, 0.0))
 
 
 def _channels(pixels: dict, name: str):
