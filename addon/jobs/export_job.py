@@ -23,7 +23,7 @@ from pathlib import Path
 from ..blender import material_export
 from ..core import files
 from ..core.export import gltf, materialx, network, usd
-from ..core.export.maps import texture_values
+from ..core.export.maps import metallic_roughness_pixels, texture_values, write_png_rgba_to
 from ..core.errors import UserError
 from ..core.gate import Gate, check_name, read_input
 from ..core.paths import safe_name
@@ -56,7 +56,7 @@ def unity_writers(materials: list, files_: list, pixels: dict, out: Path, stem: 
     for rel, content in outputs.items():
         if isinstance(content, tuple) and content[0] == unity_mat.PNG_RGBA:
             rgba = content[1]
-            writers[rel] = lambda tmp, a=rgba, r=rel: unity_mat.write_png_rgba_to(tmp, a, out / r)
+            writers[rel] = lambda tmp, a=rgba, r=rel: write_png_rgba_to(tmp, a, out / r)
         else:
             writers[rel] = _write_bytes(content)
     return writers
@@ -167,7 +167,7 @@ def write_export(
 
 
 def metallic_roughness_images(materials: list, pixels: dict) -> dict:
-    """glTF's packed metallic-roughness images (core.export.gltf.metallic_roughness_pixels),
+    """glTF's packed metallic-roughness images (core.export.maps.metallic_roughness_pixels),
     name -> pixels, from the maps' decoded pixels: the maps themselves are not written into
     the folder, which does not reference them."""
     images = {}
@@ -180,7 +180,7 @@ def metallic_roughness_images(materials: list, pixels: dict) -> dict:
             for key in ("metallic", "smoothness")
             if key in mat.textures
         }
-        images[name] = gltf.metallic_roughness_pixels(
+        images[name] = metallic_roughness_pixels(
             maps.get("metallic"), maps.get("smoothness"), False
         )
     return images

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from materialx_check import materialx_check
 
-from addon.core.export import gltf, materialx, network
+from addon.core.export import gltf, maps, materialx, network
 from addon.core.model import DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, SURFACE
 
 TEXTURES = {
@@ -78,10 +78,10 @@ def test_gltf_factors_and_packed_metallic_roughness():
     pbr = gltf.gltf_document([mat])["materials"][0]["pbrMetallicRoughness"]
     assert pbr["metallicFactor"] == 1.0 and pbr["roughnessFactor"] == 1.0
     metal, rough_map = np.full((2, 2), 0.2), np.full((4, 4), 0.7)
-    px = gltf.metallic_roughness_pixels(metal, rough_map, invert=True)
+    px = maps.metallic_roughness_pixels(metal, rough_map, invert=True)
     assert px.shape == (4, 4, 3)
     assert np.allclose(px[..., 1], 0.7) and np.allclose(px[..., 2], 0.2)
-    px = gltf.metallic_roughness_pixels(None, rough_map, invert=False)
+    px = maps.metallic_roughness_pixels(None, rough_map, invert=False)
     assert np.allclose(px[..., 1], 0.3) and np.allclose(px[..., 2], 1.0)
 
 

@@ -13,7 +13,8 @@ TRANSFORM = "KHR_texture_transform"  # a texture's UV mapping (Khronos' ratified
 
 def metallic_roughness_name(mat: Material, materials=None) -> str | None:
     """The glTF metallic-roughness image a material needs (textures/NAME), or None: glTF
-    packs roughness in G and metallic in B of one image (``metallic_roughness_pixels``).
+    packs roughness in G and metallic in B of one image (maps.py
+    ``metallic_roughness_pixels``).
     Its name is unique among the materials exported with it (``network.export_names``): from
     ``materials`` when given (``mat`` one of them), else the names read with the material
     (``mat.names``, blender/material_export.py), else its own alone."""
@@ -25,30 +26,6 @@ def metallic_roughness_name(mat: Material, materials=None) -> str | None:
     if mat.names is not None:
         return mat.names.metallic_roughness
     return export_names([mat])[0].metallic_roughness
-
-
-def metallic_roughness_pixels(metallic, smoothness, invert: bool):
-    """glTF's metallic-roughness image from the model's maps (numpy arrays of one channel,
-    or None where the input is a value, carried by the factor): G = roughness = 1 -
-    smoothness (the map itself when it fed smoothness through ``1 - x``), B = metallic, R = 1
-    (unused). Maps of different sizes are sampled at the larger one's texel centres."""
-    import numpy as np
-
-    maps = [m for m in (metallic, smoothness) if m is not None]
-    h = max(m.shape[0] for m in maps)
-    w = max(m.shape[1] for m in maps)
-
-    def at_size(m):
-        if m is None:
-            return np.ones((h, w), np.float32)
-        rows = ((np.arange(h) + 0.5) * m.shape[0] / h).astype(int)
-        cols = ((np.arange(w) + 0.5) * m.shape[1] / w).astype(int)
-        return m[rows][:, cols].astype(np.float32)
-
-    rough = at_size(smoothness)
-    if smoothness is not None and not invert:
-        rough = 1.0 - rough
-    return np.stack([np.ones((h, w), np.float32), rough, at_size(metallic)], axis=-1)
 
 
 def _f7(x) -> float:

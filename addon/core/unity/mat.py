@@ -20,7 +20,7 @@ import hashlib
 import re
 
 from ..export.network import Material, export_names, file_stem, fmt_float, utf8_text
-from ..export.maps import texture_values
+from ..export.maps import metallic_gloss_pixels, texture_values
 from ..export.network import TEXTURES
 from .read import BUILTIN_GUID, STANDARD, TEXTURE_FILE_ID
 from .standard import linear_to_srgb
@@ -286,29 +286,6 @@ def texture_meta(file_guid: str, srgb: bool, normal_map: bool = False) -> str:
     )
 
 
-def metallic_gloss_pixels(metallic, smoothness, metallic_value=0.0, smoothness_value=0.5):
-    """Unity's metallic-gloss map (float32, h x w x 4): R = G = B = metallic, A = smoothness,
-    from the model's maps (one channel each, the values the model reads: decoded, inverted
-    where the material inverts) or, where a map is None, the constants. Maps of different
-    sizes are sampled at the larger one's texel centres."""
-    import numpy as np
-
-    maps = [m for m in (metallic, smoothness) if m is not None]
-    h = max(m.shape[0] for m in maps) if maps else 1
-    w = max(m.shape[1] for m in maps) if maps else 1
-
-    def at_size(m, value):
-        if m is None:
-            return np.full((h, w), float(value), np.float32)
-        rows = ((np.arange(h) + 0.5) * m.shape[0] / h).astype(int)
-        cols = ((np.arange(w) + 0.5) * m.shape[1] / w).astype(int)
-        return np.asarray(m, np.float32)[rows][:, cols]
-
-    r = np.clip(at_size(metallic, metallic_value), 0.0, 1.0)
-    a = np.clip(at_size(smoothness, smoothness_value), 0.0, 1.0)
-    return np.stack([r, r, r, a], axis=-1).astype(np.float32)
-
-
 def unity_not_carried(mat: Material) -> list:
     """What of the material Unity's Standard shader does not carry, in words (Standard is
     the model with Unity's Smith joint G, Disney diffuse, single scattering; it reads every
@@ -431,23 +408,3 @@ def _packed_name(stem: str, used: set) -> str:
         name = f"{TEXTURES}{base}_{i}{PACKED_SUFFIX}"
     used.add(name.casefold())
     return name
-
-
-def write_png_rgba_to(tmp, rgba, final) -> None:
-    """Write a packed map (``unity_outputs``' ``(PNG_RGBA, array)``) as an 8-bit RGBA PNG
-    into ``tmp``, a path staged for ``final`` (core.files.atomic_paths). Its alpha is data
-    (smoothness), not coverage: written unassociated (OpenImageIO would otherwise divide
-    the colour by it)."""
-    import numpy as np
-
-    from ..errors import UserError
-    from ..hdri import oiio
-
-    OIIO = oiio()
-    h, w, _ = rgba.shape
-    spec = OIIO.ImageSpec(w, h, 4, OIIO.UINT8)
-    spec.attribute("oiio:UnassociatedAlpha", 1)
-    buf = OIIO.ImageBuf(spec)
-    buf.set_pixels(OIIO.ROI(0, w, 0, h, 0, 1, 0, 4), np.clip(rgba, 0, 1).astype(np.float32))
-    if not buf.write(str(tmp)):
-        raise UserError(f"cannot write {final}: {' '.join(buf.geterror().split())}")
