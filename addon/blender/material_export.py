@@ -22,7 +22,7 @@ import bpy
 from . import model_node
 from ..core.errors import UserError
 from ..core.export.network import COLORSPACES, SURFACE_KEYS, Material, Texture
-from ..core.export.network import export_names, texture_name, utf8_text
+from ..core.export.names import export_names, texture_name, utf8_text
 
 
 # A packed image without a file name gets its format's extension.
@@ -52,7 +52,7 @@ def _library(id_) -> str:
 def _image_file(image: bpy.types.Image, mat, files: dict) -> str:
     """The image's name inside the export folder (textures/NAME), registered in ``files``,
     which is keyed by the image data-block (a local image and one linked from a library may
-    share a name): a bounded ASCII name, unique without case (network.texture_name)."""
+    share a name): a bounded ASCII name, unique without case (names.texture_name)."""
     key = image.as_pointer()
     if key in files:
         return files[key]["file"].name
@@ -253,7 +253,7 @@ def read_materials(materials=None) -> tuple:
     of the file that uses the model, in the order of (name, library): a local material and
     one linked from a library may share a name; a library whose file is missing is refused,
     since its materials cannot be read). Each material carries its names in the export
-    (network.export_names over all of them)."""
+    (names.export_names over all of them)."""
     if materials is None:
         from .user_blend import check_libraries
 

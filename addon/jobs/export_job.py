@@ -23,6 +23,7 @@ from pathlib import Path
 from ..blender import material_export
 from ..core import files
 from ..core.export import gltf, materialx, network, usd
+from ..core.export.names import export_names
 from ..core.export.maps import metallic_roughness_pixels, texture_values, write_png_rgba_to
 from ..core.errors import UserError
 from ..core.gate import Gate, check_name, read_input
@@ -36,7 +37,7 @@ def plan_outputs(materials: list, fmt: str, out: Path, stem: str) -> dict:
     """Output path -> text (or dict for JSON) of the format's documents (Unity's: written by
     ``unity_writers``, from the decoded maps)."""
     if fmt == "materialx":
-        names = network.export_names(materials)
+        names = export_names(materials)
         return {out / n.mtlx: materialx.mtlx_document(m) for m, n in zip(materials, names)}
     if fmt == "usd":
         return {out / f"{stem}.usda": usd.usda_document(materials)}

@@ -16,7 +16,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from addon.core import files
-from addon.core.export import gltf, materialx, network, usd
+from addon.core.export import gltf, materialx, network
+from addon.core.export import names as naming, usd
 from addon.core.gate import check_name
 
 # Any character at all: control characters, non-ASCII, lone surrogates (a name decoded from
@@ -78,18 +79,18 @@ def _unique(names) -> None:
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(MATERIAL_NAMES)
 def test_material_names_are_unique_valid_file_names(names):
-    """network.export_names: one .mtlx, one USD prim name and one glTF packed image per
+    """naming.export_names: one .mtlx, one USD prim name and one glTF packed image per
     material, none shared (without case), each a valid file name component."""
     mats = _materials(names)
-    got = network.export_names(mats)
-    assert got == network.export_names(mats)  # deterministic
+    got = naming.export_names(mats)
+    assert got == naming.export_names(mats)  # deterministic
     _unique([n.mtlx for n in got])
     _unique([n.ident for n in got])
     _unique([n.metallic_roughness for n in got] + [MAP.file])
     for n in got:
         _component_ok(n.mtlx)
         _component_ok(n.metallic_roughness)
-        assert network._INVALID.sub("", n.ident) == n.ident and not n.ident[0].isdigit()
+        assert naming._INVALID.sub("", n.ident) == n.ident and not n.ident[0].isdigit()
 
 
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -126,18 +127,18 @@ def test_mtlx_parses_for_any_name_and_texture_file(name, file):
     text = materialx.mtlx_document(mat)
     root = ET.fromstring(text.encode("utf-8"))
     (sm,) = root.iter("surfacematerial")
-    assert network._INVALID.sub("", sm.get("name")) == sm.get("name")
+    assert naming._INVALID.sub("", sm.get("name")) == sm.get("name")
 
 
 @settings(max_examples=300, deadline=None)
 @given(st.text(ANY_CHAR, max_size=40), st.text(ANY_CHAR, max_size=20), st.integers(0, 3))
 def test_texture_names_are_bounded_valid_and_unique(stem, ext, copies):
-    """network.texture_name: any stem and extension (240 characters, undecodable bytes)
+    """naming.texture_name: any stem and extension (240 characters, undecodable bytes)
     give textures/NAME, a valid component of at most 255 bytes, unique without case."""
     used, names = set(), []
     for i in range(copies + 1):
         e = "." + ext if i % 2 == 0 else "." + "x" * 240
-        names.append(network.texture_name(stem if i < 2 else stem.swapcase(), e, ".png", used))
+        names.append(naming.texture_name(stem if i < 2 else stem.swapcase(), e, ".png", used))
     _unique(names)
     for n in names:
         assert n.startswith("textures/")
@@ -157,7 +158,7 @@ def test_usd_string_round_trips(sdf, text):
     control characters, non-ASCII); undecodable bytes as U+FFFD."""
     layer = sdf.Layer.CreateAnonymous(".usda")
     assert layer.ImportFromString("#usda 1.0\n(\n    doc = " + usd.usd_string(text) + "\n)\n")
-    assert layer.documentation == network.utf8_text(text)
+    assert layer.documentation == naming.utf8_text(text)
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -168,7 +169,7 @@ def test_usd_asset_round_trips(sdf, path):
     layer = sdf.Layer.CreateAnonymous(".usda")
     text = '#usda 1.0\ndef "X"\n{\n    asset a = ' + usd.usd_asset(path) + "\n}\n"
     assert layer.ImportFromString(text)
-    want = "".join(c for c in network.utf8_text(path) if unicodedata.category(c) != "Cc")
+    want = "".join(c for c in naming.utf8_text(path) if unicodedata.category(c) != "Cc")
     assert layer.GetAttributeAtPath("/X.a").default.path == want
 
 
@@ -199,14 +200,14 @@ def test_usda_parses_and_binds_each_object_to_its_own_material(sdf, names, objec
     prims = layer.GetPrimAtPath("/Materials").nameChildren
     assert len(prims) == len(mats)
     for prim, mat in zip(prims, mats):
-        assert prim.customData["blender_name"] == network.utf8_text(mat.name)
+        assert prim.customData["blender_name"] == naming.utf8_text(mat.name)
         assert prim.customData["blender_library"] == mat.library
     bound = {}
     for prim in layer.GetPrimAtPath("/Objects").nameChildren:
         rel = prim.relationships["material:binding"]
         bound[prim.customData["blender_name"]] = rel.targetPathList.explicitItems[0].name
     for prim, mat in zip(prims, mats):
-        assert bound[network.utf8_text(mat.objects[0])] == prim.name
+        assert bound[naming.utf8_text(mat.objects[0])] == prim.name
 
 
 def test_gltf_never_calls_a_material_exact():

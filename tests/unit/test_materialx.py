@@ -12,6 +12,7 @@ import pytest
 from materialx_check import materialx_check
 
 from addon.core.export import gltf, maps, materialx, network
+from addon.core.export import names as naming
 from addon.core.model import DIFFUSE_MODELS, ENERGY_MODES, G_MODELS, SURFACE
 
 TEXTURES = {
@@ -87,6 +88,6 @@ def test_gltf_factors_and_packed_metallic_roughness():
 
 def test_names_are_valid_and_unique():
     used = set()
-    assert network.valid_name("1 a", used) == "_1_a"
-    assert network.valid_name("1 a", used) == "_1_a_2"
-    assert network.valid_name("", used) == "material"
+    assert naming.valid_name("1 a", used) == "_1_a"
+    assert naming.valid_name("1 a", used) == "_1_a_2"
+    assert naming.valid_name("", used) == "material"

@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 import unity_fixtures as fx
 
 from addon.core.errors import UserError
-from addon.core.export.network import Material, Texture, utf8_text
+from addon.core.export.names import utf8_text
+from addon.core.export.network import Material, Texture
 from addon.core.unity import mat as writer
 from addon.core.unity import read, standard
 

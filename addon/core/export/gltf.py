@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import json
 
-from .network import DIFFUSE_SCALE, Material, export_names, not_carried, utf8_text
+from .names import export_names, utf8_text
+from .network import DIFFUSE_SCALE, Material, not_carried
 
 TRANSFORM = "KHR_texture_transform"  # a texture's UV mapping (Khronos' ratified extension)
 
@@ -15,7 +16,7 @@ def metallic_roughness_name(mat: Material, materials=None) -> str | None:
     """The glTF metallic-roughness image a material needs (textures/NAME), or None: glTF
     packs roughness in G and metallic in B of one image (maps.py
     ``metallic_roughness_pixels``).
-    Its name is unique among the materials exported with it (``network.export_names``): from
+    Its name is unique among the materials exported with it (``names.export_names``): from
     ``materials`` when given (``mat`` one of them), else the names read with the material
     (``mat.names``, blender/material_export.py), else its own alone."""
     if materials is not None:
@@ -108,7 +109,7 @@ def _info(index: int, tex) -> dict:
 
 def gltf_document(materials: list) -> dict:
     """A minimal glTF 2.0 file holding the materials (no meshes); their packed images named
-    all at once (``network.export_names``)."""
+    all at once (``names.export_names``)."""
     materials = list(materials)
     images, textures, index = [], [], {}
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 import re
 import xml.etree.ElementTree as ET
 
-from .network import NODEDEF_INPUTS, Input, Material, exact, fmt_float, interface_values
-from .network import label, model_graph, texture_nodes, utf8_text, valid_name
+from .names import fmt_float, utf8_text, valid_name
+from .network import NODEDEF_INPUTS, Input, Material, exact, interface_values
+from .network import label, model_graph, texture_nodes
 
 MATERIALX_VERSION = "1.39"
 NODE = "cook_torrance_lab"

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import unicodedata
 
-from .network import EXACT, Input, Material, Node, exact, export_names, interface_values
-from .network import label, model_graph, not_carried, texture_nodes, utf8_text, valid_name
+from .names import export_names, utf8_text, valid_name
+from .network import EXACT, Input, Material, Node, exact, interface_values
+from .network import label, model_graph, not_carried, texture_nodes
 from .materialx import mtlx_value
 
 

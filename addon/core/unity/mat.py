@@ -19,9 +19,9 @@ from __future__ import annotations
 import hashlib
 import re
 
-from ..export.network import Material, export_names, file_stem, fmt_float, utf8_text
+from ..export.names import TEXTURES, export_names, file_stem, fmt_float, utf8_text
+from ..export.network import Material
 from ..export.maps import metallic_gloss_pixels, texture_values
-from ..export.network import TEXTURES
 from .read import BUILTIN_GUID, STANDARD, TEXTURE_FILE_ID
 from .standard import linear_to_srgb
 
@@ -312,7 +312,7 @@ def unity_outputs(materials, texture_names=(), pixels=None, namespace: str = "")
     """Unity's files for the export's materials, as relative path -> content:
 
     - ``<stem>.mat`` and ``<stem>.mat.meta`` per material (bytes, UTF-8 text); the stems are
-      ``network.export_names``' (unique without case among the materials);
+      ``names.export_names``' (unique without case among the materials);
     - ``textures/<name>.meta`` (bytes) for each texture a ``.mat`` references: the albedo
       (sRGB as its image) and the normal map (Texture Type Normal map);
     - ``textures/<stem>_metallic_gloss.png`` as ``(PNG_RGBA, float32 array h x w x 4)``, for
