@@ -18,7 +18,7 @@ from pathlib import Path
 
 import bpy
 
-from . import model_node, owned, scene_lights, world_bake
+from . import model_node, owned, scene_lights, world_bake, world_signature
 from .drivers import world_lighting
 from ..core import env_importance, ibl_bake
 from ..core.errors import UserError
@@ -90,7 +90,7 @@ def _world_state(world) -> tuple:
     lighting = world_lighting(world)
     if lighting.kind == "baked":
         try:
-            return ("baked", world_bake.signature(world, content=False))
+            return ("baked", world_signature.signature(world, content=False))
         except UserError as exc:  # a missing image: sync, which reports it
             return ("baked", str(exc))
     return (lighting.kind, lighting.colour)

@@ -2,7 +2,7 @@
 (pixel_grid.py) whose material is the model node (either implementation) with its Normal and
 Sun Direction read per pixel from float images, so that each pixel shades one (n, v, l) with
 v = +Z, the camera's direction. A term view's pixel is then the term at that configuration
-(docs/model.md "BRDF plots"). The BRDF plots use it (jobs/pipeline.py run_plot).
+(docs/model.md "BRDF plots"). The BRDF plots use it (jobs/plot_job.py run_plot).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 writes the report reading only the job folder (jobs/graph_merge.py). ``ctlab plan`` writes
 the graph, ``ctlab task`` runs one task, ``ctlab merge`` the merge; ``ctlab matrix`` runs the
 same graph in this process (``run_graph``), or its render tasks as ``--workers N`` local
-processes.
+processes (jobs/workers.py).
 
 A task rebuilds its settings from the plan's spec with this version's code and checks that
 they give its id again (core.jobgraph.plan.content_id): a plan from another version, or edited
@@ -13,7 +13,6 @@ settings, is refused in one line rather than rendered into the wrong folder.
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import time
 import tomllib
@@ -21,17 +20,17 @@ from pathlib import Path
 
 import bpy
 
-from . import graph_merge, pipeline
+from . import graph_merge, pipeline, plot_job
+from .workers import describe_task, run_workers
 from ..blender import renderer
 from ..blender.paths import resolve_hdri
 from ..core import ibl_bake, jobgraph
-from ..core.errors import Cancelled, UserError
+from ..core.errors import UserError
 from ..core.files import PACKAGE_ROOT, check_writable, sha256
 from ..core.hdri import file_hash, load_hdri
 from ..core.paths import input_file
 from ..core.settings import MatrixSettings, settings_from_dict, settings_to_dict
 
-CTLAB_SCRIPT = PACKAGE_ROOT / "scripts" / "ctlab.py"
 JOBS = ("matrix", "parity")
 
 
@@ -280,7 +279,7 @@ def _merge_folders(plan: dict, base: MatrixSettings) -> list:
     plots (matrix), each parity run's comparison."""
     if plan["job"] == "matrix":
         return [c for c, *_ in pipeline.MATRIX_COMPARISONS] + [
-            f"plots/{name}" for name, *_ in pipeline.report_plots(base)
+            f"plots/{name}" for name, *_ in plot_job.report_plots(base)
         ]
     runs = dict.fromkeys(t["folder"].split("/")[0] for t in jobgraph.render_tasks(plan))
     return [f"{name}/compare" for name in runs]
@@ -363,24 +362,6 @@ def run_parity(
 # The whole graph: in this process, or render tasks as local worker processes
 
 
-def _describe(plan: dict, task: dict) -> str:
-    s = settings_from_dict(plan["spec"]["base"])
-    samples = plan["spec"]["samples"]
-    folder = task["folder"]
-    if plan["job"] == "matrix":
-        r = pipeline.matrix_settings(s)[folder]
-        return (
-            f"{graph_merge.matrix_labels()[folder]}: grid {r.rows}x{r.cols}, "
-            f"{r.width}x{r.height} px, {samples} samples"
-        )
-    name, what = folder.split("/")
-    return f"{name}: {what}, grid {s.rows}x{s.cols}, {s.width} px, {samples} samples"
-
-
-def task_command(job_dir: Path, task_id: str) -> list:
-    return [sys.executable, str(CTLAB_SCRIPT), "task", str(job_dir), task_id]
-
-
 def run_graph(
     plan: dict, job_dir: Path, events=None, verbose: bool = False, workers: int = 1
 ) -> dict:
@@ -393,66 +374,10 @@ def run_graph(
     if workers <= 1:
         for i, task in enumerate(renders):
             events.check()
-            events.progress(i + 1, steps, _describe(plan, task))
+            events.progress(i + 1, steps, describe_task(plan, task))
             result = run_task(job_dir, task["id"], events, verbose)
             if result["ran"]:
                 events.note(f"{result['scene']['render_seconds']:.1f} s")
     else:
-        _run_workers(plan, job_dir, renders, workers, steps, events)
+        run_workers(plan, job_dir, renders, workers, steps, events)
     return merge(job_dir, events, verbose, steps=steps)
-
-
-def _run_workers(plan, job_dir, renders, workers, steps, events) -> None:
-    pending = [t for t in renders if not jobgraph.done(job_dir, t)]
-    running, failed, finished = {}, [], len(renders) - len(pending)
-    logs = job_dir / jobgraph.TASKS_DIR
-    jobgraph.check_logs(job_dir, pending)
-    with jobgraph.os_errors(logs):
-        logs.mkdir(exist_ok=True)
-    env = {k: v for k, v in os.environ.items() if k != "CTLAB_JSON_EVENTS"}
-    try:
-        while pending or running:
-            if events.cancelled():
-                raise Cancelled()
-            while pending and len(running) < workers and not failed:
-                task = pending.pop(0)
-                log = jobgraph.open_log(job_dir, task)
-                proc = subprocess.Popen(
-                    task_command(job_dir, task["id"]), stdout=log, stderr=subprocess.STDOUT, env=env
-                )
-                running[proc] = (task, log, time.perf_counter())
-            if failed and not running:
-                break
-            time.sleep(0.1)
-            for proc in [p for p in running if p.poll() is not None]:
-                task, log, start = running.pop(proc)
-                log.close()
-                if proc.returncode:
-                    failed.append((task, proc.returncode))
-                    continue
-                finished += 1
-                events.progress(
-                    finished,
-                    steps,
-                    f"{_describe(plan, task)} "
-                    f"({time.perf_counter() - start:.1f} s, worker process)",
-                )
-    finally:
-        for proc, (_, log, _) in running.items():
-            proc.terminate()
-            proc.wait()
-            log.close()
-    if failed:
-        task, code = failed[0]
-        tail = ""
-        log = jobgraph.log_path(job_dir, task)
-        try:
-            text = log.read_text(errors="replace")
-        except OSError:
-            text = ""
-        lines = [ln for ln in text.splitlines() if ln.strip()]
-        tail = f": {lines[-1]}" if lines else ""
-        raise UserError(
-            f"task {task['id']} ({task['folder']}) failed (exit {code}){tail}; "
-            f"re-run: ctlab task {job_dir} {task['id']} (log: {log})"
-        )

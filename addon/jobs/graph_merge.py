@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import pipeline
+from . import pipeline, plot_job
 from ..core import energy, jobgraph
 from ..core.compare import compare, read_image
 from ..core.errors import UserError
@@ -55,12 +55,12 @@ def merge_matrix(out, plan, base, events, verbose, steps) -> dict:
         for folder, g, e in pipeline.FURNACE_RENDERS
     }
     plots = []
-    for name, label, plot in pipeline.report_plots(base):
+    for name, label, plot in plot_job.report_plots(base):
         events.check()
         events.note(f"BRDF plot: {label}")
         inner = pipeline.Events(note=pipeline._nothing, cancelled=events.cancelled)
         plots.append(
-            (label, f"plots/{name}", pipeline.run_plot(plot, out / "plots" / name, inner, verbose))
+            (label, f"plots/{name}", plot_job.run_plot(plot, out / "plots" / name, inner, verbose))
         )
     events.progress(steps, steps, "writing the report")
     report = write_report(

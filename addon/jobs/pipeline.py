@@ -1,8 +1,8 @@
 """The pipeline: rendering views of the sphere matrix, what the main comparison job and the
-Principled-parity job render and compare (run as task graphs by jobs/graph.py), the BRDF plot
-and the bake, as functions that take validated settings (core.settings) and report through
-``Events``. The command line, the background job, the benchmark and the tests all run these;
-none of them parses another's output.
+Principled-parity job render and compare (run as task graphs by jobs/graph.py) and the bake
+(the BRDF plots: jobs/plot_job.py), as functions that take validated settings
+(core.settings) and report through ``Events``. The command line, the background job, the
+benchmark and the tests all run these; none of them parses another's output.
 
 A job reports ``progress(step, total, message)`` before each step and ``note(message)`` within
 one, and polls ``cancelled()`` between steps: when it answers True the job stops with
@@ -21,12 +21,12 @@ import bpy
 
 from ..blender import model_node, renderer, scene_builder
 from ..blender.paths import bundled_hdri, resolve_hdri
-from ..core import brdf_plot, energy, ibl_bake
+from ..core import energy, ibl_bake
 from ..core.errors import Cancelled, UserError
 from ..core.hdri import load_hdri
 from ..core.files import check_writable, forget_report, refuse_overwrite
 from ..core.gate import Gate
-from ..core.model import BAKED_IBL_MODES, DEFAULT_TRANSPORT, G_MODELS, LAB
+from ..core.model import BAKED_IBL_MODES, DEFAULT_TRANSPORT, LAB
 from ..core.paths import safe_name
 from ..core.settings import (
     MIN_SPHERE_PX,
@@ -337,124 +337,6 @@ def parity_runs(base: MatrixSettings, hdris: list, name: str | None = None) -> l
             "file names); rename one"
         )
     return jobs
-
-
-# ----------------------------------------------------------------------------------------
-# BRDF plots
-
-
-def evaluate_plot(
-    settings: brdf_plot.PlotSettings, events: Events | None = None, verbose: bool = False
-) -> dict:
-    """The model of ``settings`` and of each variant (brdf_plot.PlotSettings.variants)
-    evaluated by the chosen implementation at every configuration of the plot:
-    {tag: brdf_plot.assemble(...)}, the variants' labels under "labels". Rendered once
-    (render_plot), then read from the cache (jobs/plot_cache.py) while the settings, the
-    code and Blender's version are the same."""
-    from . import plot_cache
-
-    return plot_cache.cached(settings, lambda: render_plot(settings, events, verbose))
-
-
-def render_plot(
-    settings: brdf_plot.PlotSettings, events: Events | None = None, verbose: bool = False
-) -> dict:
-    """evaluate_plot's results rendered, in a fresh empty scene."""
-    from ..blender.model_eval import Evaluator
-
-    events = events or Events()
-    lay = brdf_plot.layout(settings)
-    variants = settings.variants()
-    base_views = tuple(
-        dict.fromkeys(brdf_plot.BRDF_VIEWS + (brdf_plot.WEIGHT_VIEW,) + settings.views)
-    )
-    renders = [
-        (tag, view, changes)
-        for tag, _, changes in variants
-        for view in (brdf_plot.BRDF_VIEWS if tag else base_views)
-    ]
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    evaluator = Evaluator(
-        settings.shader,
-        lay.n,
-        lay.l,
-        settings.albedo,
-        settings.metallic,
-        settings.smoothness,
-        settings.options(),
-        verbose,
-    )
-    images: dict = {}
-    for k, (tag, view, changes) in enumerate(renders):
-        events.check()
-        events.progress(k + 1, len(renders) + 1, f"{view}" + (f" ({tag})" if tag else ""))
-        images.setdefault(tag, {})[view] = evaluator.render(settings.options(view, **changes))
-    results = {
-        tag: brdf_plot.assemble(
-            lay, images[tag], settings.views if not tag else (), images[""][brdf_plot.WEIGHT_VIEW]
-        )
-        for tag, _, _ in variants
-    }
-    results["labels"] = {tag: label for tag, label, _ in variants}
-    return results
-
-
-def report_plots(base: MatrixSettings) -> list:
-    """The main job's BRDF plots: (folder, label, PlotSettings) for a smooth and a rough
-    sphere of the matrix (the smoothest below 1 and the roughest above 0, or the extremes
-    where those coincide), each a metal and a dielectric (the last and first columns), with
-    the base's albedo and switches and the other G models as variants."""
-    cells = list(base.cells())
-    smooth = sorted({c[3] for c in cells})
-    metal = sorted({c[2] for c in cells})
-    inner = [x for x in smooth if 0.0 < x < 1.0] or smooth
-    rows = (inner[-1], inner[0]) if inner[-1] != inner[0] else (smooth[-1], smooth[0])
-    compare = tuple(("g", g) for g in G_MODELS if g != base.model.g_model)
-    out = []
-    for kind, s in zip(("smooth", "rough"), dict.fromkeys(rows)):
-        for m in dict.fromkeys((metal[-1], metal[0])):
-            what = "metal" if m >= 0.5 else "dielectric"
-            out.append(
-                (
-                    f"m{m:.2f}_s{s:.2f}",
-                    f"{kind} {what}: metallic {m:.2f}, smoothness {s:.2f}",
-                    brdf_plot.PlotSettings(
-                        metallic=m,
-                        smoothness=s,
-                        albedo=base.albedo,
-                        g_model=base.model.g_model,
-                        diffuse_model=base.model.diffuse_model,
-                        units=base.model.units,
-                        energy=base.model.energy,
-                        shader="osl",
-                        compare=compare,
-                    ),
-                )
-            )
-    return out
-
-
-def run_plot(
-    settings: brdf_plot.PlotSettings, out: Path, events: Events | None = None, verbose: bool = False
-) -> dict:
-    """``ctlab plot``: the BRDF's slice, lobes and directional albedo from the model's own
-    code, written into ``out`` whole (plot_figures.write_plot). Returns plot.json's data."""
-    from ..core import plot_figures
-
-    events = events or Events()
-    refuse_overwrite([], [Path(out) / "plot.json"], [out])  # not in the cache
-    plot_figures.refuse_blocked(out, plot_figures.planned_names(settings))  # before renders
-    check_writable(out)
-    results = evaluate_plot(settings, events, verbose)
-    events.check()
-    events.note("writing the plots")
-    return plot_figures.write_plot(
-        Path(out),
-        settings,
-        results,
-        {"blender": bpy.app.version_string, "implementation": settings.shader},
-        events.warn,
-    )
 
 
 # ----------------------------------------------------------------------------------------

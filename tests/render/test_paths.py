@@ -214,11 +214,11 @@ def _plot(out, *extra):
 def test_a_folder_where_a_plot_file_goes_is_refused_before_any_render(
     tmp_path, capsys, monkeypatch
 ):
-    from addon.jobs import pipeline
+    from addon.jobs import plot_job
 
     out = tmp_path / "p"
     (out / "albedo.svg").mkdir(parents=True)
-    monkeypatch.setattr(pipeline, "evaluate_plot", lambda *a: pytest.fail("rendered"))
+    monkeypatch.setattr(plot_job, "evaluate_plot", lambda *a: pytest.fail("rendered"))
     one_line(
         capsys, _plot(out, "--compare", "g=smith_ggx_correlated"), "holds a folder named albedo.svg"
     )

@@ -13,7 +13,7 @@ import pytest
 from reference_model import specular_albedo
 from addon.core import brdf_plot as bp
 from addon.core.errors import UserError
-from addon.jobs import cli, pipeline
+from addon.jobs import cli, plot_job
 
 # The BRDF plots' quadratures: the same on every Blender series, so run on one
 # (docs/testing.md, "Which tests run on both series").
@@ -264,7 +264,7 @@ CASES = {
 def evaluated(request):
     s = bp.PlotSettings(views=("D", "F", "G"), **CASES[request.param])
     out = {
-        shader: pipeline.evaluate_plot(
+        shader: plot_job.evaluate_plot(
             bp.PlotSettings(shader=shader, views=s.views, **CASES[request.param])
         )
         for shader in ("osl", "nodes")
@@ -318,7 +318,7 @@ def test_osl_and_nodes_agree_with_energy_compensated():
         energy="compensated",
         albedo=(0.9, 0.6, 0.3),
     )
-    a, b = (pipeline.evaluate_plot(bp.PlotSettings(shader=sh, **kw))[""] for sh in ("osl", "nodes"))
+    a, b = (plot_job.evaluate_plot(bp.PlotSettings(shader=sh, **kw))[""] for sh in ("osl", "nodes"))
     cos = slice_cosines()
     alpha = bp.PlotSettings(**kw).alpha
     assert not (
@@ -326,7 +326,7 @@ def test_osl_and_nodes_agree_with_energy_compensated():
         > 2 * tolerance(a["slice"]["f_r"], *cos, alpha, floor=1.5e-4)
     ).any()
     np.testing.assert_allclose(a["albedo"]["total"], b["albedo"]["total"], rtol=3e-4)
-    uncompensated = pipeline.evaluate_plot(bp.PlotSettings(**dict(kw, energy="none")))[""]
+    uncompensated = plot_job.evaluate_plot(bp.PlotSettings(**dict(kw, energy="none")))[""]
     gain = a["albedo"]["specular"] / uncompensated["albedo"]["specular"]
     # the compensation is there (in both; measured 1.18 at normal incidence, 1.006 at 89
     # degrees in blue)
@@ -407,7 +407,7 @@ def test_compensated_energy_fills_the_white_furnace_in_the_plot():
     s = bp.PlotSettings(
         metallic=1.0, smoothness=0.0, albedo=(1, 1, 1), compare=(("energy", "compensated"),)
     )
-    out = pipeline.evaluate_plot(s)
+    out = plot_job.evaluate_plot(s)
     tv = bp.albedo_angles()
     comp = out["energy-compensated"]["albedo"]["specular"][tv < 85, 0]
     assert comp.min() >= 0.97 and comp.max() <= 1.01, (comp.min(), comp.max())
@@ -507,22 +507,22 @@ def test_a_plot_is_rendered_once_then_read_from_the_cache(tmp_path, monkeypatch)
 
     monkeypatch.setenv("CTLAB_CACHE", str(tmp_path / "cache"))
     rendered = []
-    render = pipeline.render_plot
+    render = plot_job.render_plot
     monkeypatch.setattr(
-        pipeline, "render_plot", lambda *a, **k: rendered.append(a[0]) or render(*a, **k)
+        plot_job, "render_plot", lambda *a, **k: rendered.append(a[0]) or render(*a, **k)
     )
     fields = dict(
         metallic=1.0, smoothness=0.3, views=("D",), compare=(("g", "smith_ggx_correlated"),)
     )
     s = bp.PlotSettings(**fields)
-    first = pipeline.evaluate_plot(s)
+    first = plot_job.evaluate_plot(s)
     assert len(rendered) == 1 and list(first) == ["", "g-smith_ggx_correlated", "labels"]
-    second = pipeline.evaluate_plot(s)
+    second = plot_job.evaluate_plot(s)
     assert len(rendered) == 1
     _same_results(first, second)
     entry = tmp_path / "cache" / plot_cache.key(s) / plot_cache.RESULTS
     entry.write_bytes(entry.read_bytes()[:-100])  # truncated: the manifest catches it
-    third = pipeline.evaluate_plot(s)
+    third = plot_job.evaluate_plot(s)
     assert len(rendered) == 2
     _same_results(first, third)
     keys = {plot_cache.key(s)}

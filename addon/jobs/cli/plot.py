@@ -1,4 +1,4 @@
-"""``ctlab plot``: the BRDF plotted from the model's own code (jobs/pipeline.py
+"""``ctlab plot``: the BRDF plotted from the model's own code (jobs/plot_job.py
 ``run_plot``, core/brdf_plot.py): the theta_h x theta_d slice, lobes and directional albedo."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from .options import (
     vector_text,
 )
 from .output import events, say
-from .. import pipeline
+from .. import plot_job
 from ...core import model
 
 
@@ -46,14 +46,14 @@ def plot_settings_from(args):
 
 
 def run(args) -> None:
-    """The BRDF plotted from the model's own code (pipeline.run_plot)."""
+    """The BRDF plotted from the model's own code (plot_job.run_plot)."""
     settings = plot_settings_from(args)
     out = check_path(args.out, "--out")
     say(
         f"plotting the {settings.shader} model: metallic {settings.metallic:g}, smoothness "
         f"{settings.smoothness:g} -> {out}"
     )
-    data = pipeline.run_plot(settings, out, events(), args.verbose)
+    data = plot_job.run_plot(settings, out, events(), args.verbose)
     say(
         f"done: f_r up to {data['slice']['max']:.4g} /sr on the slice, mean directional "
         f"albedo {data['albedo']['mean_total']:.3f}; slice.exr, slice.png, lobe.svg, "
