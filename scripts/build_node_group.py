@@ -2,9 +2,10 @@
 the source digest it was built from and the Blender that built it), so that no first use
 builds its 1,271 nodes (blender/node_group.py ``ensure_group``). Built with the oldest Blender
 series the extension supports (4.5), whose file every newer series opens. Run it after
-changing the group's sources (node_groups/cook_torrance.toml, the model's interface,
-core/node_description.py, blender/node_group.py, blender/node_compiler.py: ``source_digest``);
-tests/render/test_build_once.py fails until it is run.
+changing the group's sources (node_groups/cook_torrance.toml's data, the model's interface,
+the code of core/node_description.py, blender/node_group.py, blender/node_compiler.py and
+blender/node_closures.py: ``source_digest``; comments and docstrings do not count,
+core/source_code.py); tests/render/test_build_once.py fails until it is run.
 
     CTLAB_BLENDER=4.5 ./scripts/ctlab.sh --version >/dev/null   # sets up .venv-bpy4.5
     CTLAB_BLENDER=4.5 ./scripts/dev.sh build_node_group

@@ -21,6 +21,7 @@ import bpy
 
 from ..core.errors import UserError
 from ..core.files import DATA_DIR
+from ..core.source_code import code_bytes
 from ..core.model import GROUP_INPUTS, GROUP_OUTPUTS, SCENE_VIEWS, VIEWS
 from ..core import node_description
 from ..core.node_description import (
@@ -31,10 +32,11 @@ from ..core.node_description import (
     load_description,
     parse,
 )
-from . import node_compiler, owned
+from . import node_closures, node_compiler, owned
 from .group_images import _float_image, set_bake, table_images  # noqa: F401 (their home)
 from .node_compiler import BAKE_DIM, BAKE_FILE, MODEL_TABLE  # noqa: F401 (their tags)
-from .node_compiler import CHAIN_INPUTS, Compiler, chain, closures
+from .node_closures import chain, closures
+from .node_compiler import CHAIN_INPUTS, Compiler
 
 # The groups' tags, their roles (blender/owned.py): found by identity, never by name alone
 TAG = owned.NODE_GROUP
@@ -331,17 +333,21 @@ def _scene_transport(b: Compiler, spec: dict, view_on: list, lab, correction_gro
 
 def source_digest() -> str:
     """What the group is built from: its description, the model's interface, its planning
-    (core/node_description.py), this assembly and the compiler; with Blender's version, the
-    cache key of the built group."""
+    (core/node_description.py), this assembly, the compiler and the closures; with Blender's
+    version, the cache key of the built group. The description counts as its parsed data and
+    each module as its code (core/source_code.py), so a comment or a docstring changes
+    nothing."""
     import hashlib
+    import tomllib
 
+    description = json.dumps(tomllib.loads(DESCRIPTION.read_text()), sort_keys=True)
+    modules = (Path(__file__), Path(node_compiler.__file__), Path(node_closures.__file__))
+    modules += (Path(node_description.__file__),)
     return hashlib.sha256(
-        DESCRIPTION.read_bytes()
+        description.encode()
         + repr(GROUP_INPUTS).encode()
         + repr(GROUP_OUTPUTS).encode()
-        + Path(__file__).read_bytes()
-        + Path(node_compiler.__file__).read_bytes()
-        + Path(node_description.__file__).read_bytes()
+        + b"".join(code_bytes(p) for p in modules)
     ).hexdigest()[:16]
 
 
