@@ -96,7 +96,7 @@ LONGEST_FILES = (
     "render/test_task_graph.py",  # 90: the main job, as processes, the killed task
     "render/test_node_group.py",  # 75: EEVEE against Cycles, every term view
     "render/test_ibl_bake.py",  # 65
-    "render/test_ui.py",  # 63
+    "render/test_ui_jobs.py",  # 63 with test_ui_materials.py and test_ui_panels.py
     "slow/test_scene_residual.py",  # 55
     "slow/test_brdf_plot.py",  # 52
     "render/test_scene_job.py",  # 45

@@ -12,81 +12,22 @@ plus a Lambert Diffuse BSDF) that Cycles path traces, not the lab's emission.
 """
 
 import math
-import tempfile
 
 import numpy as np
 import pytest
 
-from addon.blender import compat
 from addon.core import node_description
 from addon.core.model import VIEWS
+from node_interpreter import evaluate, group_inputs, source_of
+from residual_quadrature import residual_quadrature
+from transport_scene import (
+    scene_renders,
+)
 
 FULL = VIEWS.index("full")
 
 
 # --- Structure ------------------------------------------------------------------------------
-
-_MATH = {
-    "ADD": lambda a, b: a + b,
-    "SUBTRACT": lambda a, b: a - b,
-    "MULTIPLY": lambda a, b: a * b,
-    "DIVIDE": lambda a, b: a / b if b else 0.0,
-    "MAXIMUM": max,
-    "MINIMUM": min,
-    "SQRT": lambda a, b: math.sqrt(a) if a > 0 else 0.0,
-    "GREATER_THAN": lambda a, b: float(a > b),
-    "LESS_THAN": lambda a, b: float(a < b),
-}
-_VEC = {
-    "ADD": np.add,
-    "SUBTRACT": np.subtract,
-    "MULTIPLY": np.multiply,
-    "MINIMUM": np.minimum,
-    "MAXIMUM": np.maximum,
-}
-
-
-def _input_value(sock, inputs):
-    if sock.is_linked:
-        return _evaluate(sock.links[0].from_socket, inputs)
-    v = sock.default_value
-    return np.array(v[:3], dtype=np.float64) if hasattr(v, "__len__") else float(v)
-
-
-def _evaluate(sock, inputs):
-    """The value of an output socket built from the group's inputs by Math and Vector Math
-    nodes, per Blender's documented operations (``inputs``: group input name -> value)."""
-    node = sock.node
-    if node.bl_idname == "NodeGroupInput":
-        return inputs[sock.name]
-    if node.bl_idname == "ShaderNodeMath":
-        a, b, c = (_input_value(s, inputs) for s in node.inputs[:3])
-        if node.operation == "COMPARE":
-            out = float(abs(a - b) <= max(c, 1e-5))
-        else:
-            out = _MATH[node.operation](a, b)
-        return min(max(out, 0.0), 1.0) if node.use_clamp else out
-    if node.bl_idname == "ShaderNodeVectorMath":
-        a = _input_value(node.inputs[0], inputs)
-        if node.operation == "SCALE":
-            return a * _input_value(node.inputs["Scale"], inputs)
-        return _VEC[node.operation](a, _input_value(node.inputs[1], inputs))
-    raise AssertionError(f"cannot evaluate {node.bl_idname} {node.name} ({node.label})")
-
-
-def _source(sock):
-    assert sock.is_linked, f"{sock.node.name}.{sock.name} is not linked"
-    return sock.links[0].from_socket
-
-
-def _group_inputs(**values):
-    from addon.core.model import GROUP_INPUTS
-
-    out = {}
-    for i in GROUP_INPUTS:
-        v = values.get(i.group, i.default)
-        out[i.group] = np.array(v[:3], dtype=np.float64) if isinstance(v, tuple) else float(v)
-    return out
 
 
 @pytest.fixture(scope="module")
@@ -103,14 +44,14 @@ def group():
 
 def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view(group):
     out = next(n for n in group.nodes if n.bl_idname == "NodeGroupOutput")
-    select = _source(out.inputs["Emission"]).node
+    select = source_of(out.inputs["Emission"]).node
     assert select.bl_idname == "ShaderNodeMixShader"
-    lab, scene = (_source(select.inputs[k]).node for k in (1, 2))
+    lab, scene = (source_of(select.inputs[k]).node for k in (1, 2))
     for transport in (0, 1):
         for view in range(len(VIEWS)):
-            fac = _evaluate(
-                _source(select.inputs["Fac"]),
-                _group_inputs(**{"Light Transport Scene": transport, "View": view}),
+            fac = evaluate(
+                source_of(select.inputs["Fac"]),
+                group_inputs(**{"Light Transport Scene": transport, "View": view}),
             )
             assert fac == float(transport == 1 and view == FULL), (transport, VIEWS[view])
 
@@ -126,20 +67,20 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
     # the scene side: the closures plus the correction behind a Mix Shader of factor
     # `correct` (its first input empty), the only emission there
     assert scene.bl_idname == "ShaderNodeAddShader"
-    closures, gate = (_source(scene.inputs[k]).node for k in (0, 1))
+    closures, gate = (source_of(scene.inputs[k]).node for k in (0, 1))
     if closures.bl_idname == "ShaderNodeMixShader":
         closures, gate = gate, closures
     assert gate.bl_idname == "ShaderNodeMixShader" and not gate.inputs[1].is_linked
     scene_nodes = upstream(closures, [])
     assert not [n for n in scene_nodes if n.bl_idname in ("ShaderNodeEmission", "ShaderNodeGroup")]
-    correction = upstream(_source(gate.inputs[2]).node, [])
+    correction = upstream(source_of(gate.inputs[2]).node, [])
     assert not [n for n in correction if n.bl_idname in bsdfs]  # the correction only emits
     for g_model in range(3):
         for lambert in (0, 1):
             for energy in (0, 1):
-                fac = _evaluate(
-                    _source(gate.inputs["Fac"]),
-                    _group_inputs(
+                fac = evaluate(
+                    source_of(gate.inputs["Fac"]),
+                    group_inputs(
                         **{
                             "G Model": g_model,
                             "Diffuse Lambert": lambert,
@@ -158,15 +99,15 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
         n
         for n in scene_nodes
         if n.bl_idname == "ShaderNodeMixShader"
-        and {_source(n.inputs[k]).node for k in (1, 2)} == set(metals)
+        and {source_of(n.inputs[k]).node for k in (1, 2)} == set(metals)
     )
     for energy in (0, 1):
-        fac = _evaluate(
-            _source(chooser.inputs["Fac"]), _group_inputs(**{"Energy Compensated": energy})
+        fac = evaluate(
+            source_of(chooser.inputs["Fac"]), group_inputs(**{"Energy Compensated": energy})
         )
         assert fac == energy
-    assert _source(chooser.inputs[1]).node.distribution == 'GGX'
-    assert _source(chooser.inputs[2]).node.distribution == 'MULTI_GGX'
+    assert source_of(chooser.inputs[1]).node.distribution == 'GGX'
+    assert source_of(chooser.inputs[2]).node.distribution == 'MULTI_GGX'
 
     diffuse = diffuse[0]
     for metal in metals:
@@ -178,8 +119,8 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
         if "Thin Film Thickness" in metal.inputs:  # 5.x
             assert metal.inputs["Thin Film Thickness"].default_value == 0
         # the shading normal the lab uses (the group's n: Normal input or geometry's)
-        assert _source(metal.inputs["Normal"]).node.label == "n"
-    assert _source(diffuse.inputs["Normal"]).node.label == "n"
+        assert source_of(metal.inputs["Normal"]).node.label == "n"
+    assert source_of(diffuse.inputs["Normal"]).node.label == "n"
     assert not diffuse.inputs["Roughness"].is_linked
     assert diffuse.inputs["Roughness"].default_value == 0  # Lambert
 
@@ -192,20 +133,20 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
         ((0.5, 0.25, 0.125), 0.3, 1.0),
         ((1.4, -0.2, 0.5), 0.6, 0.0),
     ):
-        inputs = _group_inputs(Albedo=albedo, Metallic=m, Smoothness=s)
+        inputs = group_inputs(Albedo=albedo, Metallic=m, Smoothness=s)
         base = np.clip(albedo, 0, 1)
         for metal in metals:
             np.testing.assert_allclose(
-                _evaluate(_source(metal.inputs["Base Color"]), inputs),
+                evaluate(source_of(metal.inputs["Base Color"]), inputs),
                 0.04 * (1 - m) + base * m,
                 rtol=1e-6,
                 atol=1e-7,
             )
-            assert _evaluate(_source(metal.inputs["Roughness"]), inputs) == pytest.approx(
+            assert evaluate(source_of(metal.inputs["Roughness"]), inputs) == pytest.approx(
                 max(1 - s, math.sqrt(0.002)), rel=1e-6
             )
         np.testing.assert_allclose(
-            _evaluate(_source(diffuse.inputs["Color"]), inputs),
+            evaluate(source_of(diffuse.inputs["Color"]), inputs),
             base * 0.96 * (1 - m),
             rtol=1e-6,
             atol=1e-7,
@@ -213,245 +154,6 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
 
 
 # --- A render where path tracing matters ----------------------------------------------------
-
-SIZE, SAMPLES = 64, 64
-# (albedo, metallic, smoothness): a copper-like metal and a blue dielectric
-SPHERES = (
-    dict(albedo=(0.95, 0.64, 0.54), metallic=1.0, smoothness=0.6),
-    dict(albedo=(0.2, 0.35, 0.8), metallic=0.0, smoothness=0.45),
-)
-LOCATIONS = ((-0.65, 0.0, 0.5), (0.75, -0.2, 0.5))
-CUBE = (0.1, 0.75, 0.4)
-
-# generalized_schlick_bsdf(f0, f90 = 1, exponent 5, GGX, roughness arguments = alpha) is GGX
-# with Schlick's F and the height-correlated Smith G (Cycles' OSL closures); diffuse() Lambert.
-OSL_REFERENCE = """
-shader reference(color f0 = 0.04, color diffColor = 0, float alpha = 0.25,
-                 output closure color BSDF = 0)
-{
-    BSDF = generalized_schlick_bsdf(N, vector(0), color(1), color(0), alpha, alpha, f0,
-                                    color(1), 5.0, "ggx") + diffColor * diffuse(N);
-}
-"""
-
-
-def _diffuse_material(name, colour):
-    import bpy
-
-    mat = bpy.data.materials.new(name)
-    compat.use_nodes(mat)
-    nt = mat.node_tree
-    nt.nodes.clear()
-    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    d.inputs["Color"].default_value = tuple(colour) + (1.0,)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(d.outputs["BSDF"], out.inputs["Surface"])
-    return mat
-
-
-def _emission_material(name, colour):
-    import bpy
-
-    mat = bpy.data.materials.new(name)
-    compat.use_nodes(mat)
-    nt = mat.node_tree
-    nt.nodes.clear()
-    e = nt.nodes.new("ShaderNodeEmission")
-    e.inputs["Color"].default_value = tuple(colour) + (1.0,)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(e.outputs["Emission"], out.inputs["Surface"])
-    return mat
-
-
-class Scene:
-    """Two spheres (radius 0.5), a red cube behind them and a grey floor (Diffuse BSDFs), a
-    perspective camera, in an empty file, under forest.exr (its sun near 1437). Built once;
-    each render sets the spheres' (and the cube's) materials."""
-
-    def __init__(self):
-        import bpy
-        from addon.blender.paths import bundled_hdri
-
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        scene = self.scene = bpy.context.scene
-        w = self.world = bpy.data.worlds.new("forest")
-        compat.use_nodes(w)
-        nt = w.node_tree
-        nt.nodes.clear()
-        env = nt.nodes.new("ShaderNodeTexEnvironment")
-        env.image = bpy.data.images.load(str(bundled_hdri("forest")))
-        bg = nt.nodes.new("ShaderNodeBackground")
-        out = nt.nodes.new("ShaderNodeOutputWorld")
-        nt.links.new(env.outputs["Color"], bg.inputs["Color"])
-        nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
-        self.grey = _diffuse_material("grey", (0.5, 0.5, 0.5))
-        self.red = _diffuse_material("red", (0.8, 0.05, 0.05))
-        bpy.ops.mesh.primitive_plane_add(size=20)
-        self.floor = bpy.context.active_object
-        bpy.ops.mesh.primitive_cube_add(size=0.8, location=CUBE)
-        self.cube = bpy.context.active_object
-        self.spheres = []
-        for location in LOCATIONS:
-            bpy.ops.mesh.primitive_uv_sphere_add(
-                segments=48, ring_count=24, radius=0.5, location=location
-            )
-            bpy.ops.object.shade_smooth()
-            self.spheres.append(bpy.context.active_object)
-        cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-        cam.location = (0.0, -4.0, 1.6)
-        cam.rotation_euler = (math.radians(72), 0.0, 0.0)
-        scene.collection.objects.link(cam)
-        scene.camera = cam
-        scene.render.resolution_x = scene.render.resolution_y = SIZE
-        scene.render.resolution_percentage = 100
-
-    @staticmethod
-    def _set(obj, mat):
-        obj.data.materials.clear()
-        obj.data.materials.append(mat)
-
-    def render(
-        self,
-        tmp,
-        name,
-        spheres,
-        floor=None,
-        cube=None,
-        shader="nodes",
-        seed=0,
-        world=True,
-        samples=SAMPLES,
-        pixel_centres=False,
-    ):
-        """The linear image (float64, rows top-down as read_image gives them)."""
-        from addon.blender import renderer
-        from addon.core.compare import read_image
-
-        for obj, mat in zip(self.spheres, spheres):
-            self._set(obj, mat)
-        self._set(self.floor, floor or self.grey)
-        self._set(self.cube, cube or self.red)
-        self.scene.world = self.world if world else None
-        renderer.configure(
-            self.scene,
-            shader,
-            "full",
-            samples,
-            seed=seed,
-            path_traced=True,
-            pixel_centres=pixel_centres,
-        )
-        image = renderer.render_result(tmp / "log.txt")
-        path = tmp / f"{name}.exr"
-        renderer.save_exr(self.scene, image, path)
-        return read_image(path).astype(np.float64)
-
-    def masks(self, tmp):
-        """The pixels whose centre sees sphere 0 or 1 (an emission render, one sample at each
-        pixel centre, no world)."""
-        black = _emission_material("id black", (0, 0, 0))
-        image = self.render(
-            tmp,
-            "masks",
-            (_emission_material("id 0", (1, 0, 0)), _emission_material("id 1", (0, 1, 0))),
-            floor=black,
-            cube=black,
-            world=False,
-            samples=1,
-            pixel_centres=True,
-        )
-        return [image[..., 0] > 0.5, image[..., 1] > 0.5]
-
-
-def group_material(surface, name):
-    """The node group (through the project's material builder) in the scene transport with the
-    exact switches: height-correlated Smith G, Lambert, no energy compensation."""
-    from addon.blender import materials
-    from addon.core.model import ModelOptions
-
-    options = ModelOptions(
-        g_model="smith_ggx_correlated",
-        diffuse_model="lambert",
-        energy="none",
-        light_transport="scene",
-        ibl="split_sum",
-    )
-    return materials.model_material(name, impl="nodes", options=options, **surface)
-
-
-def principled_metal(surface, name):
-    """Principled BSDF, metallic 1: F82-tint Fresnel with its default white specular tint, i.e.
-    Schlick's on Base Color; GGX with alpha = Roughness^2 = (1 - smoothness)^2."""
-    import bpy
-
-    assert surface["metallic"] == 1.0
-    mat = bpy.data.materials.new(name)
-    compat.use_nodes(mat)
-    nt = mat.node_tree
-    nt.nodes.clear()
-    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
-    bsdf.distribution = 'GGX'
-    bsdf.inputs["Base Color"].default_value = tuple(surface["albedo"]) + (1.0,)
-    bsdf.inputs["Metallic"].default_value = 1.0
-    bsdf.inputs["Roughness"].default_value = 1.0 - surface["smoothness"]
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    return mat
-
-
-def osl_reference(surface, name):
-    """The OSL script above with the model's inputs: specColor, diffColor, alpha."""
-    import bpy
-    import cycles.osl
-
-    mat = bpy.data.materials.new(name)
-    compat.use_nodes(mat)
-    nt = mat.node_tree
-    nt.nodes.clear()
-    text = bpy.data.texts.get("reference.osl") or bpy.data.texts.new("reference.osl")
-    text.from_string(OSL_REFERENCE)
-    node = nt.nodes.new("ShaderNodeScript")
-    node.mode = 'INTERNAL'
-    errors = []
-    saved = tempfile.tempdir
-    with tempfile.TemporaryDirectory() as private:  # where Cycles leaves its .oso
-        tempfile.tempdir = private
-        try:
-            node.script = text
-            cycles.osl.update_script_node(
-                node, lambda kind, msg: errors.append(msg) if 'ERROR' in kind else None
-            )
-        finally:
-            tempfile.tempdir = saved
-    assert not errors and "f0" in node.inputs, errors
-    albedo, m = np.array(surface["albedo"]), surface["metallic"]
-    pr = 1.0 - surface["smoothness"]
-    node.inputs["f0"].default_value = tuple(0.04 * (1 - m) + albedo * m) + (1.0,)
-    node.inputs["diffColor"].default_value = tuple(albedo * 0.96 * (1 - m)) + (1.0,)
-    node.inputs["alpha"].default_value = max(pr * pr, 0.002)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(node.outputs["BSDF"], out.inputs["Surface"])
-    return mat
-
-
-def scene_renders(tmp, scene=None):
-    """The renders the tests compare (64 x 64, 64 samples, seed 0, 12 bounces)."""
-    scene = scene or Scene()
-    group = tuple(group_material(s, f"group {k}") for k, s in enumerate(SPHERES))
-    return scene, {
-        "group": scene.render(tmp, "group", group),
-        "principled": scene.render(
-            tmp, "principled", (principled_metal(SPHERES[0], "principled metal"), group[1])
-        ),
-        "osl": scene.render(
-            tmp,
-            "osl",
-            tuple(osl_reference(s, f"osl {k}") for k, s in enumerate(SPHERES)),
-            shader="osl",
-        ),
-        # the group with a grey cube in place of the red one
-        "grey cube": scene.render(tmp, "grey cube", group, cube=scene.grey),
-    }
 
 
 @pytest.fixture(scope="module")
@@ -695,7 +397,7 @@ def test_the_correction_is_zero_for_the_closures_own_switches(tmp_path, soft_sky
         for n in group.nodes
         if n.bl_idname == "ShaderNodeMixShader" and n.label.startswith("correction (0")
     )
-    source = _source(gate.inputs[2])
+    source = source_of(gate.inputs[2])
     images = {}
     for combo in (
         ("smith_ggx_correlated", "lambert", "none"),
@@ -720,73 +422,6 @@ def test_the_correction_is_zero_for_the_closures_own_switches(tmp_path, soft_sky
 
 
 # --- The residual albedo -------------------------------------------------------------------
-
-
-_ALBEDOS = {}  # (G, alpha, n) -> the directional albedos of the G's lobe and Smith's, over ms
-
-
-def _residual_quadrature(g_model, diffuse, energy, mu, pr, spec_color, diff_color, n=480):
-    """integral of |f_s,model - f_s,closure| (n.l) dl + integral of |f_d,model - f_Lambert|
-    (n.l) dl for each n.v in ``mu`` (the closures: Smith's G, Lambert; with energy
-    compensated both lobes scaled by their k_ms, Cycles' Multiscatter GGX for Smith's), by a
-    midpoint grid over l in (theta, phi) (not the group's half-vector quadrature), from the
-    closed forms of docs/model.md; k_ms from directional albedos integrated on the same grid.
-    One colour channel (spec_color, diff_color scalars)."""
-    a = max(pr * pr, 0.002)
-    th = (np.arange(n) + 0.5) / n * (np.pi / 2)
-    ph = (np.arange(2 * n) + 0.5) / (2 * n) * np.pi  # phi in [0, pi], doubled
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    dw = 2 * np.sin(T) * (np.pi / 2 / n) * (np.pi / (2 * n))
-    lx, ly, nl = np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)
-
-    def lobes(m):
-        vx = math.sqrt(max(1 - m * m, 0.0))
-        hx, hy, hz = lx + vx, ly, nl + m
-        norm = np.sqrt(hx * hx + hy * hy + hz * hz)
-        nh, vh = hz / norm, (hx * vx + hz * m) / norm
-        d = a * a / (np.pi * (nh * nh * (a * a - 1) + 1) ** 2)
-        a2 = a * a
-        smith = (
-            2
-            * nl
-            * m
-            / (nl * math.sqrt(m * m * (1 - a2) + a2) + m * np.sqrt(nl * nl * (1 - a2) + a2))
-        )
-        if g_model == "cook_torrance":
-            g = np.minimum(1, np.minimum(2 * nh * m / vh, 2 * nh * nl / vh))
-        elif g_model == "unity_smith_joint":
-            g = 4 * nl * m * 0.5 / (nl * (m * (1 - a) + a) + m * (nl * (1 - a) + a) + 1e-5)
-        else:
-            g = smith
-        f = spec_color + (1 - spec_color) * (1 - vh) ** 5
-        base = d / (4 * nl * m)
-        fd90 = 0.5 + 2 * vh * vh * pr
-        disney = (1 + (fd90 - 1) * (1 - nl) ** 5) * (1 + (fd90 - 1) * (1 - m) ** 5)
-        return base * g, base * smith, f, disney
-
-    ms = np.linspace(0.005, 1, 80)
-    key = (g_model, a, n)
-    if energy != "none" and key not in _ALBEDOS:  # the lobes' directional albedos (no F)
-        both = [lobes(m)[:2] for m in ms]
-        _ALBEDOS[key] = [np.array([float(np.sum(b[w] * nl * dw)) for b in both]) for w in (0, 1)]
-
-    def k_ms(which):
-        if energy == "none":
-            return lambda m: 1.0
-        E = _ALBEDOS[key][which]
-        e_avg = float(np.sum((E * ms)[1:] + (E * ms)[:-1]) * (ms[1] - ms[0]))  # 2 x trapezoids
-        f_avg = spec_color + (1 - spec_color) / 21
-        f_ms = f_avg * e_avg / (1 - f_avg * (1 - e_avg))
-        return lambda m: 1 + f_ms * (1 - np.interp(m, ms, E)) / np.interp(m, ms, E)
-
-    k_g, k_s = k_ms(0), k_ms(1)
-    out = []
-    for m in np.atleast_1d(mu):
-        g, smith, f, disney = lobes(m)
-        spec = np.abs(k_g(m) * g - k_s(m) * smith) * f
-        diff = diff_color / np.pi * np.abs(disney - 1) if diffuse == "disney" else 0.0
-        out.append(float(np.sum((spec + diff) * nl * dw)))
-    return np.array(out)
 
 
 def _with_residual_output(mp):
@@ -885,7 +520,7 @@ def test_the_residual_albedo_output_is_the_quadrature(tmp_path, g_model, energy)
         assert np.isfinite(img).all() and (img[inside] >= 0).all()
         assert np.allclose(img[inside][:, 0], img[inside][:, 2], rtol=1e-5, atol=1e-7)
         grid = np.linspace(0.2, 1.0, 17)
-        want_grid = _residual_quadrature(
+        want_grid = residual_quadrature(
             g_model, "disney", energy, grid, 0.5, 1.0 if metal else 0.04, 0.0 if metal else 0.96
         )
         for lo, hi in ((0.2, 0.4), (0.4, 0.7), (0.7, 1.0)):
