@@ -1,5 +1,5 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
 // The baked image-based lighting modes: split-sum and Unity (docs/model.md "Baked
 // image-based lighting").
 

@@ -1,5 +1,5 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
 // The model's BRDF: derived quantities, the terms D, F, G, f_d and f_s (docs/model.md
 // "Derived quantities", "The terms").
 
@@ -24,8 +24,6 @@ color diff_color_from_metallic(color albedo, float metallic)
 }
 
 float pow5(float x) { return (x * x) * (x * x) * x; }
-
-float wrap01(float x) { return x - floor(x); }
 
 float max_component(color c) { return max(c[0], max(c[1], c[2])); }
 
@@ -61,6 +59,14 @@ float G_SmithGGXCorrelated(float NdotV, float NdotL, float a)
     float lv = NdotL * sqrt(NdotV * NdotV * (1.0 - a2) + a2);
     float ll = NdotV * sqrt(NdotL * NdotL * (1.0 - a2) + a2);
     return 2.0 * NdotL * NdotV / max(lv + ll, 1e-20);
+}
+
+// Smith's masking for GGX toward v: G1 = 2 (n.v) / ((n.v) + sqrt(a^2 + (1 - a^2)(n.v)^2))
+// (Walter et al. 2007, eq. 34).
+float G1_SmithGGX(float NdotV, float a)
+{
+    float a2 = a * a;
+    return 2.0 * NdotV / max(NdotV + sqrt(a2 + (1.0 - a2) * NdotV * NdotV), 1e-20);
 }
 
 // G: Unity's approximate height-correlated Smith visibility (SmithJointGGXVisibilityTerm,

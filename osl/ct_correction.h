@@ -1,18 +1,11 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
 // The scene transport's correction by the one-sample model of multiple importance sampling
 // (docs/model.md "The correction"): each sample draws ONE technique, the world's or one
 // light's, instead of every technique of every light and the world as the lab does.
 
 #ifndef CT_CORRECTION_H
 #define CT_CORRECTION_H
-
-// The world as the correction reads it: the equirectangular image, its mapping and the
-// environment sampler's tables (ct_world.h).
-struct EnvMap {
-    string file; float width; float rotation; float strength;
-    string marginal; string conditional; string pdf_table; int bottom_up;
-};
 
 // One sample of integral (f_model - f_closure) L_world (n.l) dl. The technique is a
 // direction from GGX's visible normals or an environment direction, each with probability
@@ -90,12 +83,12 @@ color scene_correction(Surface sf, point P, EnvMap env, int world, Light lights[
                        int active[8], int n, int rays, int N, point key)
 {
     float q = world ? ((n > 0) ? 0.5 : 1.0) : 0.0;
-    float r = hashnoise(key, 40000.5);
+    float r = hashnoise(key, STREAM_CORRECTION);
     color sum = color(0);
     for (int s = 0; s < N; s++) {
         float u[5];
         for (int k = 0; k < 5; k++)
-            u[k] = min(hashnoise(key, 40001.5 + 8 * s + k), 0.99999994);
+            u[k] = uniform01(key, STREAM_CORRECTION_SAMPLES + 8 * s + k);
         float pick = wrap01((s + 0.5) / N + r);
         if (pick < q) {
             sum += world_correction_sample(sf, P, env, rays, u) / q;

@@ -1,5 +1,5 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
 // The model's tables (DFG, multiple-scattering albedo) and the energy compensation
 // (docs/model.md "Switches": energy).
 

@@ -1,5 +1,5 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
 // Blender's lights in Cycles' units, for the key Sun and the light slots (docs/model.md
 // "Lights").
 
@@ -22,7 +22,6 @@
 #define LIGHT_SPOT 3
 #define LIGHT_AREA_RECTANGLE 4
 #define LIGHT_AREA_ELLIPSE 5
-#define FAR_AWAY 1.0e30
 
 // One light's slot inputs.
 struct Light {
@@ -36,20 +35,6 @@ struct Light {
 struct Incoming {
     vector dir; float dist; color Li; float pdf;
 };
-
-// Shirley and Chiu's concentric map of the unit square onto the unit disk.
-void concentric_disk(float u1, float u2, output float x, output float y)
-{
-    float a = 2.0 * u1 - 1.0, b = 2.0 * u2 - 1.0;
-    x = 0.0; y = 0.0;
-    if (a == 0.0 && b == 0.0)
-        return;
-    float r, phi;
-    if (abs(a) > abs(b)) { r = a; phi = M_PI_4 * b / a; }
-    else { r = b; phi = M_PI_2 - M_PI_4 * a / b; }
-    x = r * cos(phi);
-    y = r * sin(phi);
-}
 
 // Cycles' spot attenuation (spot_attenuation in kernel/light/spot.h).
 float spot_factor(Light lt, vector to_point)
@@ -224,29 +209,6 @@ Incoming light_along(Light lt, point P, vector dir)
     return arriving(lt, P, dir, dist, -denom, area);
 }
 
-// Shadow ray from the shading point toward dir, up to dist (docs/model.md "Shadows"). With
-// no minimum distance and the origin exactly P, Cycles skips the primitive the ray leaves
-// (OSLRenderServices::trace), and maxdist stops it at the light, so nothing beyond the light
-// counts. A ray that leaves under its facet (dot(Ng, dir) <= 0, which only the smooth shading
-// normal allows) would enter its own object at once; like Cycles' shadow-terminator offset,
-// it is not shadowed by that. rays = 0 traces nothing: for a scene whose objects shadow
-// neither each other nor themselves (the matrix's convex spheres when their mutual shadows
-// are off, as Principled's are then).
-int shadowed(point P, vector dir, float dist, int rays)
-{
-    if (!rays || dot(Ng, dir) <= 0.0)
-        return 0;
-    return trace(P, dir, "maxdist", (dist >= FAR_AWAY) ? FAR_AWAY : dist * (1.0 - 1e-4));
-}
-
-// A direction from the BRDF sampler: GGX half vectors with probability p_spec, else cosine.
-vector sample_brdf(vector n, vector v, float a, float p_spec, float u_pick, float u1, float u2)
-{
-    if (u_pick < p_spec)
-        return reflect(-v, sample_ggx_half(n, a, u1, u2));
-    return sample_cosine(n, u1, u2);
-}
-
 // One light's reflected radiance, diffuse and specular: one sample of the light and one of
 // the BRDF, combined with the balance heuristic (Veach 1995), each adding
 // f_r Li (n.l) / (p_light + p_brdf); a delta light takes its one direction alone, adding
@@ -285,20 +247,4 @@ void shade_light(Light lt, point P, Surface sf, float p_spec, int rays, float u[
     sum_d += f_d * hit.Li * w;
     sum_s += f_s * hit.Li * w;
 }
-
-// Van der Corput radical inverse in base 2, for a stratified point set per shading point.
-float radical_inverse2(int i)
-{
-    int bits = i;
-    float r = 0.0, f = 0.5;
-    while (bits > 0) {
-        if (bits & 1)
-            r += f;
-        bits = bits >> 1;
-        f *= 0.5;
-    }
-    return r;
-}
-
-
 #endif // CT_LIGHTS_H

@@ -1,11 +1,11 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
-// Sampling the BRDF for the reference integration (docs/model.md "Environment sampling (reference mode)").
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
+// The samplers beside their densities (docs/model.md "Environment sampling (reference
+// mode)", "The correction"): the BRDF's (GGX half vectors, the cosine lobe, their mixture),
+// GGX's visible normals, and a disk for the lights (ct_lights.h).
 
 #ifndef CT_SAMPLING_H
 #define CT_SAMPLING_H
-
-// Sampling the BRDF
 
 // An orthonormal frame around n (Duff et al. 2017).
 void make_frame(vector n, output vector t, output vector b)
@@ -39,24 +39,31 @@ vector sample_cosine(vector n, float u1, float u2)
     return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u1)) * n);
 }
 
-// Density of the BRDF sampler in solid angle: the mixture of the GGX lobe
-// (D (n.h) / (4 (v.h))) chosen with probability p_spec, and the cosine lobe.
+// The density of sample_ggx_half's direction l = reflect(-v, h) in solid angle:
+// D (n.h) / (4 (v.h)) (Walter et al. 2007, eq. 14 and 38).
+float ggx_half_pdf(float NdotH, float VdotH, float a)
+{
+    return D_GGX(NdotH, a) * NdotH / (4.0 * max(VdotH, 1e-8));
+}
+
+// A direction from the BRDF sampler: GGX half vectors with probability p_spec, else cosine.
+vector sample_brdf(vector n, vector v, float a, float p_spec, float u_pick, float u1, float u2)
+{
+    if (u_pick < p_spec)
+        return reflect(-v, sample_ggx_half(n, a, u1, u2));
+    return sample_cosine(n, u1, u2);
+}
+
+// Density of the BRDF sampler in solid angle: the mixture of the GGX lobe (ggx_half_pdf)
+// chosen with probability p_spec, and the cosine lobe.
 float brdf_pdf(vector n, vector v, vector l, float a, float p_spec)
 {
     float NdotL = dot(n, l);
     if (NdotL <= 0.0)
         return 0.0;
     Geometry g = geometry_of(n, v, l);
-    float pdf_spec = D_GGX(g.NdotH, a) * g.NdotH / (4.0 * max(g.VdotH, 1e-8));
+    float pdf_spec = ggx_half_pdf(g.NdotH, g.VdotH, a);
     return p_spec * pdf_spec + (1.0 - p_spec) * NdotL / M_PI;
-}
-
-// Smith's masking for GGX toward v: G1 = 2 (n.v) / ((n.v) + sqrt(a^2 + (1 - a^2)(n.v)^2))
-// (Walter et al. 2007, eq. 34).
-float G1_SmithGGX(float NdotV, float a)
-{
-    float a2 = a * a;
-    return 2.0 * NdotV / max(NdotV + sqrt(a2 + (1.0 - a2) * NdotV * NdotV), 1e-20);
 }
 
 // A light direction from GGX's visible normals (Heitz 2018, "Sampling the GGX Distribution
@@ -98,7 +105,18 @@ float ggx_visible_pdf(vector n, vector v, vector l, float a)
     return G1_SmithGGX(g.NdotV, a) * D_GGX(g.NdotH, a) / (4.0 * g.NdotV);
 }
 
-// ---------------------------------------------------------------------------------------
-
+// Shirley and Chiu's concentric map of the unit square onto the unit disk.
+void concentric_disk(float u1, float u2, output float x, output float y)
+{
+    float a = 2.0 * u1 - 1.0, b = 2.0 * u2 - 1.0;
+    x = 0.0; y = 0.0;
+    if (a == 0.0 && b == 0.0)
+        return;
+    float r, phi;
+    if (abs(a) > abs(b)) { r = a; phi = M_PI_4 * b / a; }
+    else { r = b; phi = M_PI_2 - M_PI_4 * a / b; }
+    x = r * cos(phi);
+    y = r * sin(phi);
+}
 
 #endif // CT_SAMPLING_H

@@ -1,10 +1,12 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
 // The model as a struct, toward one direction, and as Cycles closures: the scene transport
-// (docs/model.md "Light transport").
+// (docs/model.md "Light transport"); the shadow ray every estimator traces ("Shadows").
 
 #ifndef CT_TRANSPORT_H
 #define CT_TRANSPORT_H
+
+#define FAR_AWAY 1.0e30  // a shadow ray's length toward the world and a Sun
 
 // The model's BRDF, as a struct so that helpers can take it whole.
 // `closures` marks the scene transport's correction (below): the BRDF is then what Cycles'
@@ -49,5 +51,20 @@ closure color scene_closures(Surface sf)
     return spec + burley_diffuse_bsdf(sf.n, sf.diffColor, sf.pr);
 }
 
+
+// Shadow ray from the shading point toward dir, up to dist (docs/model.md "Shadows"). With
+// no minimum distance and the origin exactly P, Cycles skips the primitive the ray leaves
+// (OSLRenderServices::trace), and maxdist stops it at the light, so nothing beyond the light
+// counts. A ray that leaves under its facet (dot(Ng, dir) <= 0, which only the smooth shading
+// normal allows) would enter its own object at once; like Cycles' shadow-terminator offset,
+// it is not shadowed by that. rays = 0 traces nothing: for a scene whose objects shadow
+// neither each other nor themselves (the matrix's convex spheres when their mutual shadows
+// are off, as Principled's are then).
+int shadowed(point P, vector dir, float dist, int rays)
+{
+    if (!rays || dot(Ng, dir) <= 0.0)
+        return 0;
+    return trace(P, dir, "maxdist", (dist >= FAR_AWAY) ? FAR_AWAY : dist * (1.0 - 1e-4));
+}
 
 #endif // CT_TRANSPORT_H

@@ -1,5 +1,5 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
-// inlines it when it loads the source: addon/blender/osl_shader.py, source()).
+// inlines it when it loads the source: addon/core/osl_source.py, source()).
 // The world: Blender's equirectangular mapping, texture lookups and the environment sampler
 // (docs/model.md "Lighting", "Environment sampling", "Textures in OSL").
 
@@ -127,7 +127,22 @@ float env_sample(string marginal, string conditional, string pdf_table, float ro
     return table_texel(pdf_table, col, row, C, R, bottom_up) / (2.0 * M_PI * M_PI * cos_elev);
 }
 
-// ---------------------------------------------------------------------------------------
+// The world, one record for every estimator: the equirectangular image (file, its width),
+// its mapping (rotation about Z, strength, texture rows bottom-up), the environment
+// sampler's tables, and the baked split-sum files (bake: ibl_bake's folder, ct_baked.h).
+struct EnvMap {
+    string file; float width; float rotation; float strength;
+    string marginal; string conditional; string pdf_table; int bottom_up; string bake;
+};
 
+EnvMap env_map(string file, int width, float rotation, float strength, string marginal,
+               string conditional, string pdf_table, int bottom_up, string bake)
+{
+    EnvMap env;
+    env.file = file; env.width = width; env.rotation = rotation; env.strength = strength;
+    env.marginal = marginal; env.conditional = conditional; env.pdf_table = pdf_table;
+    env.bottom_up = bottom_up; env.bake = bake;
+    return env;
+}
 
 #endif // CT_WORLD_H
