@@ -1,7 +1,7 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
 // inlines it when it loads the source: addon/core/osl_source.py, source()).
-// The baked image-based lighting modes: split-sum and Unity (docs/model.md "Baked
-// image-based lighting").
+// The baked image-based lighting modes, split-sum and Unity's, over the world record EnvMap
+// (ct_world.h) (docs/model.md "Lighting": split_sum, split_sum_corrected, unity).
 
 #ifndef CT_BAKED_H
 #define CT_BAKED_H
@@ -67,7 +67,6 @@ color prefiltered_radiance(string bake, float W, vector r, float x, float rotati
     return mix(a, b, lx - i);
 }
 
-
 // Split-sum (Karis 2013): integral f_s L (n.l) dl ~ prefiltered(r) (specColor A + B);
 // diffuse: f_d's directional factor times E(n), i.e. diffColor E(n) / pi (x the Disney factor).
 // With `corrected`, the pre-filtered radiance is read toward the lobe's dominant direction,
@@ -76,20 +75,19 @@ color prefiltered_radiance(string bake, float W, vector r, float x, float rotati
 // listing 22), but with t computed for this model's D and G (the lobe's centroid; channel 2 of
 // ms_<G>, core/ibl_bake.py dominant_table) where they fit t = (1 - a)(sqrt(1 - a) + a) to
 // Smith's G.
-void indirect_split_sum(string bake, float W, string g_model, string diffuse_model, vector n,
+void indirect_split_sum(EnvMap env, string g_model, string diffuse_model, vector n,
                         vector vdir, float NdotV, float pr, float a, int corrected,
-                        color specColor, color diffColor, float rotation, float strength,
-                        int bottom_up, output color spec, output color diff)
+                        color specColor, color diffColor, output color spec, output color diff)
 {
     vector r = reflect(-vdir, n);
     if (corrected) {
-        color ms = model_table(bake, "ms", g_model, NdotV, pr, bottom_up);
+        color ms = model_table(env.bake, "ms", g_model, NdotV, pr, env.bottom_up);
         r = normalize(mix(n, r, ms[2]));
     }
-    color dfg = model_table(bake, "dfg", g_model, NdotV, pr, bottom_up);
-    spec = prefiltered_radiance(bake, W, r, pr * (IBL_LEVELS - 1), rotation, strength,
-                                bottom_up) * (specColor * dfg[0] + dfg[1]);
-    color E = irradiance(bake, W, n, rotation, strength, bottom_up);
+    color dfg = model_table(env.bake, "dfg", g_model, NdotV, pr, env.bottom_up);
+    spec = prefiltered_radiance(env.bake, env.width, r, pr * (IBL_LEVELS - 1), env.rotation,
+                                env.strength, env.bottom_up) * (specColor * dfg[0] + dfg[1]);
+    color E = irradiance(env.bake, env.width, n, env.rotation, env.strength, env.bottom_up);
     float k_diffuse = (diffuse_model == "lambert") ? 1.0 : dfg[2];
     diff = diffColor * E / M_PI * k_diffuse;
 }
@@ -98,21 +96,19 @@ void indirect_split_sum(string bake, float W, string g_model, string diffuse_mod
 // UnityImageBasedLighting.cginc): mip = pr (1.7 - 0.7 pr) * 6, surfaceReduction = 1/(a^2 + 1),
 // grazing = saturate(smoothness + 1 - oneMinusReflectivity), FresnelLerp with (1 - n.v)^5;
 // diffuse = diffColor x irradiance (Unity's SH irradiance is E / pi).
-void indirect_unity(string bake, float W, vector n, vector vdir, float NdotV, float pr, float a,
-                    float metallic, color specColor, color diffColor, float rotation,
-                    float strength, int bottom_up, output color spec, output color diff)
+void indirect_unity(EnvMap env, vector n, vector vdir, float NdotV, float pr, float a,
+                    float metallic, color specColor, color diffColor, output color spec,
+                    output color diff)
 {
     vector r = reflect(-vdir, n);
     float mip = pr * (1.7 - 0.7 * pr) * (IBL_LEVELS - 1);
-    color env = prefiltered_radiance(bake, W, r, mip, rotation, strength, bottom_up);
+    color L = prefiltered_radiance(env.bake, env.width, r, mip, env.rotation, env.strength,
+                                   env.bottom_up);
     float surface_reduction = 1.0 / (a * a + 1.0);
     float grazing = clamp((1.0 - pr) + 1.0 - 0.96 * (1.0 - metallic), 0.0, 1.0);
-    spec = surface_reduction * env * mix(specColor, color(grazing), pow5(1.0 - NdotV));
-    color E = irradiance(bake, W, n, rotation, strength, bottom_up);
+    spec = surface_reduction * L * mix(specColor, color(grazing), pow5(1.0 - NdotV));
+    color E = irradiance(env.bake, env.width, n, env.rotation, env.strength, env.bottom_up);
     diff = diffColor * E / M_PI;
 }
-
-// ---------------------------------------------------------------------------------------
-
 
 #endif // CT_BAKED_H

@@ -1,16 +1,17 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
 // inlines it when it loads the source: addon/core/osl_source.py, source()).
 // The shader's estimators, one function each, in the order of docs/model.md: the term
-// views ("Views"), the key Sun and the light slots ("Lights"), the baked modes ("Baked
-// image-based lighting"), the reference integration of the world ("Environment sampling
-// (reference mode)"), the scene transport's correction ("The correction") and its residual
-// albedo ("Residual albedo"). Each adds to `result` in the order the shader always has, so a
-// render is the same to the last bit.
+// views ("Views (term isolation)"), the key Sun and the light slots ("Lighting": Direct;
+// "Lights"), the baked modes ("Lighting": split_sum, unity), the reference integration of the
+// world ("Lighting": reference; "Environment sampling (reference mode)"), the scene
+// transport's correction and its residual albedo ("The correction (a control variate)").
+// Each adds to `result` in the order the shader always has, so a render is the same to the
+// last bit.
 
 #ifndef CT_ESTIMATORS_H
 #define CT_ESTIMATORS_H
 
-// Which parts of the light a view shows (docs/model.md "Views").
+// Which parts of the light a view shows (docs/model.md "Views (term isolation)").
 struct Want {
     int direct; int indirect; int diffuse; int specular;
 };
@@ -27,7 +28,8 @@ Want wants_of(string view)
     return w;
 }
 
-// A term view (the key light's direction, no lighting factor): 1 and its value in `out`,
+// A term view (the key light's direction, no lighting factor; docs/model.md "Views (term
+// isolation)", the terms as "The terms" and "Units" define them): 1 and its value in `out`,
 // else 0.
 int term_view(string view, Geometry g, float D, color F, float G, color f_s, color f_d,
               float k_units, vector n, color base, color specColor, output color out)
@@ -48,7 +50,8 @@ int term_view(string view, Geometry g, float D, color F, float G, color f_s, col
     return 1;
 }
 
-// The key Sun: L = f_r E (n.l), shadowed by a shadow ray (nothing without a key Sun: E = 0).
+// The key Sun: L = f_r E (n.l) (docs/model.md "Units", "Lighting": Direct), shadowed by a
+// shadow ray ("Shadows"; nothing without a key Sun: E = 0).
 // f_d, f_s: the model toward it; in the scene transport the correction's (brdf_toward).
 void sun_light(Surface sf, point P, Geometry g, vector l, color E, int shadow, int rays,
                color f_d, color f_s, Want w, float k_units, output color result)
@@ -67,7 +70,8 @@ void sun_light(Surface sf, point P, Geometry g, vector l, color E, int shadow, i
     result += k_units * f * E * g.NdotL * visible;
 }
 
-// The light slots (ct_lights.h shade_light: one light sample and one BRDF sample each, MIS);
+// The light slots (docs/model.md "Lights"; ct_lights.h shade_light: one light sample and one
+// BRDF sample each, balance heuristic, Veach 1995);
 // f_s is 0 where n.v <= 0, f_d is not (as for the key Sun, and in the node group).
 void slot_lights(Light lights[8], point P, Surface sf, float p_spec, int rays, point key,
                  Want w, float k_units, output color result)
@@ -85,26 +89,26 @@ void slot_lights(Light lights[8], point P, Surface sf, float p_spec, int rays, p
     }
 }
 
-// The world, baked: split-sum (corrected or not) or Unity's approximation (ct_baked.h).
+// The world, baked: split-sum (Karis 2013; corrected or not) or Unity's approximation
+// (docs/model.md "Lighting": split_sum, split_sum_corrected, unity; ct_baked.h).
 void baked_light(EnvMap env, string ibl, Surface sf, Geometry g, float metallic, Want w,
                  output color result)
 {
     color spec_i = color(0), diff_i = color(0);
     if (ibl != "unity")
-        indirect_split_sum(env.bake, env.width, sf.g_model, sf.diffuse_model, sf.n, sf.v,
-                           g.NdotV, sf.pr, sf.a, ibl == "split_sum_corrected", sf.specColor,
-                           sf.diffColor, env.rotation, env.strength, env.bottom_up, spec_i,
+        indirect_split_sum(env, sf.g_model, sf.diffuse_model, sf.n, sf.v, g.NdotV, sf.pr, sf.a,
+                           ibl == "split_sum_corrected", sf.specColor, sf.diffColor, spec_i,
                            diff_i);
     else
-        indirect_unity(env.bake, env.width, sf.n, sf.v, g.NdotV, sf.pr, sf.a, metallic,
-                       sf.specColor, sf.diffColor, env.rotation, env.strength, env.bottom_up,
-                       spec_i, diff_i);
+        indirect_unity(env, sf.n, sf.v, g.NdotV, sf.pr, sf.a, metallic, sf.specColor,
+                       sf.diffColor, spec_i, diff_i);
     spec_i *= sf.k_ms;
     if (w.diffuse) result += diff_i;
     if (w.specular) result += spec_i;
 }
 
-// The world, reference: integral of f_r L_env (n.l) over the hemisphere by N BRDF samples
+// The world, reference (docs/model.md "Lighting": reference, "Environment sampling
+// (reference mode)"): integral of f_r L_env (n.l) over the hemisphere by N BRDF samples
 // (sample_brdf) and N environment samples (env_sample), balance heuristic: each adds
 // f_r L_env (n.l) / (N (p_brdf + p_env)); a stratified set (radical inverse) under a random
 // rotation per shading point (Cranley-Patterson). With `visibility` each sample traces a
@@ -160,7 +164,8 @@ void reference_light(EnvMap env, Surface sf, point P, float p_spec, int N, int v
 }
 
 // The scene transport's correction for the world and the shining light slots, one
-// technique per sample (ct_correction.h).
+// technique per sample (docs/model.md "The correction (a control variate)"; ct_correction.h):
+// integral of (f_model - f_closure) L (n.l) dl.
 color correction(Surface sf, point P, EnvMap env, Light lights[8], int rays, int N, point key)
 {
     int active[8] = { 0, 0, 0, 0, 0, 0, 0, 0 };
@@ -176,7 +181,9 @@ color correction(Surface sf, point P, EnvMap env, Light lights[8], int rays, int
 }
 
 // What the correction leaves to the closures (light from other objects): the residual
-// albedo, integral of |f_model - f_closure| (n.l) dl, by N GGX half vectors (ggx_half_pdf).
+// albedo, integral of |f_model - f_closure| (n.l) dl (docs/model.md "The correction (a
+// control variate)", the Residual Albedo output), by N GGX half vectors (ggx_half_pdf, for
+// v.h > 0: the draws with v.h <= 0 are skipped).
 color residual_estimate(Surface sf, int N, point key)
 {
     float r1 = hashnoise(key, STREAM_RESIDUAL), r2 = hashnoise(key, STREAM_RESIDUAL + 1.0);

@@ -1,7 +1,7 @@
 // A part of the Cook-Torrance Lab shader, included by osl/cook_torrance.osl (the add-on
 // inlines it when it loads the source: addon/core/osl_source.py, source()).
-// Blender's lights in Cycles' units, for the key Sun and the light slots (docs/model.md
-// "Lights").
+// Blender's lights in Cycles' units, for the light slots (docs/model.md "Lights"): a light's
+// sampler (sample_light) beside its density (light_along), and one light's MIS estimate.
 
 #ifndef CT_LIGHTS_H
 #define CT_LIGHTS_H

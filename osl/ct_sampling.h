@@ -29,7 +29,16 @@ vector sample_ggx_half(vector n, float a, float u1, float u2)
     return normalize(sin_t * cos(phi) * t + sin_t * sin(phi) * b + cos_t * n);
 }
 
-// Cosine-weighted direction (Malley's method), density (n.l)/pi.
+// The density of sample_ggx_half's direction l = reflect(-v, h) in solid angle:
+// D (n.h) / (4 (v.h)) (Walter et al. 2007, eq. 14 and 38), for v.h > 0. The callers guard
+// v.h as they always have, so that each computes what it did: brdf_pdf floors it at 1e-8,
+// residual_estimate (ct_estimators.h) skips v.h <= 0.
+float ggx_half_pdf(float NdotH, float VdotH, float a)
+{
+    return D_GGX(NdotH, a) * NdotH / (4.0 * VdotH);
+}
+
+// Cosine-weighted direction (Malley's method), density (n.l)/pi (brdf_pdf writes it).
 vector sample_cosine(vector n, float u1, float u2)
 {
     float r = sqrt(u1);
@@ -37,13 +46,6 @@ vector sample_cosine(vector n, float u1, float u2)
     vector t, b;
     make_frame(n, t, b);
     return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u1)) * n);
-}
-
-// The density of sample_ggx_half's direction l = reflect(-v, h) in solid angle:
-// D (n.h) / (4 (v.h)) (Walter et al. 2007, eq. 14 and 38).
-float ggx_half_pdf(float NdotH, float VdotH, float a)
-{
-    return D_GGX(NdotH, a) * NdotH / (4.0 * max(VdotH, 1e-8));
 }
 
 // A direction from the BRDF sampler: GGX half vectors with probability p_spec, else cosine.
@@ -62,7 +64,7 @@ float brdf_pdf(vector n, vector v, vector l, float a, float p_spec)
     if (NdotL <= 0.0)
         return 0.0;
     Geometry g = geometry_of(n, v, l);
-    float pdf_spec = ggx_half_pdf(g.NdotH, g.VdotH, a);
+    float pdf_spec = ggx_half_pdf(g.NdotH, max(g.VdotH, 1e-8), a);
     return p_spec * pdf_spec + (1.0 - p_spec) * NdotL / M_PI;
 }
 
