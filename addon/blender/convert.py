@@ -145,7 +145,6 @@ def principled_to_model(
         tree.links.new(model_node.shader_output(node), link.to_socket)
     tree.nodes.remove(bsdf)
     model_node.link_geometry_normal(tree, node)
-    model_node.connect_residual(tree, node)
     model_node.set_defaults(node, ARTIST, light_transport=light_transport)
     model_node.set_option(node, "energy", energy or "none")
     # the model emits its view: never sample it as a light (restored on the way back)

@@ -26,6 +26,7 @@ from ..core.hdri import load_hdri, uniform_world
 from ..core.model import files_needed
 
 MATRIX_TAG = "ctlab_matrix"  # the matrix builder manages its own material (scene_builder)
+RESIDUAL_PASS = "ctlab_residual_pass"  # the scene's custom property: set_residual_pass
 
 
 def key_sun(scene: bpy.types.Scene) -> bpy.types.Object | None:
@@ -174,12 +175,38 @@ def sync_material(
     scene_lights.sync_slots(tree, node, used)
     if environment:
         update_environment(node, scene, env)
-    if model_node.get_option(node, "light_transport") == "scene":
+    update_residual(tree, node, scene)
+
+
+def residual_pass(scene: bpy.types.Scene) -> bool:
+    """Whether the scene asks for the residual albedo pass (``set_residual_pass``)."""
+    return bool(scene.get(RESIDUAL_PASS, False))
+
+
+def set_residual_pass(scene: bpy.types.Scene, on: bool) -> None:
+    """Ask for the residual albedo pass (Render Properties > Passes > Shader AOV
+    residual_albedo) or stop asking: every user material of the scene transport wires its
+    model's residual albedo to the pass, or unwires it. Off by default: Cycles' SVM computes
+    every node that feeds an AOV Output before it skips a closure, so the pass costs each
+    camera hit the correction's tables and lookups even where the correction is zero
+    (bench/results.md, "Where the converted product shot's time goes")."""
+    scene[RESIDUAL_PASS] = bool(on)
+    for mat, node in user_materials():
+        update_residual(mat.node_tree, node, scene)
+
+
+def update_residual(tree: bpy.types.NodeTree, node: bpy.types.Node, scene) -> None:
+    """The node's residual albedo wired to the pass where the scene asks for it and the node's
+    light transport is the scene's (the lab's residual is zero); unwired otherwise."""
+    if residual_pass(scene) and model_node.get_option(node, "light_transport") == "scene":
+        model_node.connect_residual(tree, node)
         add_residual_pass(scene)
+    else:
+        model_node.remove_residual(tree, node)
 
 
 def add_residual_pass(scene: bpy.types.Scene) -> None:
-    """The view layers' AOV for the OSL shader's residual albedo (model_node.connect_residual),
+    """The view layers' AOV for the model's residual albedo (model_node.connect_residual),
     so that it shows as a render pass; added once, never removed."""
     from ..core.model import OSL_RESIDUAL
 

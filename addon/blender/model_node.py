@@ -35,6 +35,9 @@ from ..core.model import (
 )
 
 NODE_NAME = "Cook-Torrance"
+# custom property of the AOV Output connect_residual makes (its pass name): the mark that
+# says the add-on made it, so remove_residual never removes a user's node of that pass
+RESIDUAL_AOV = "ctlab_residual_aov"
 SURFACE_KEYS = tuple(i.key for i in SURFACE)
 OPTION_KEYS = tuple(i.key for i in OPTIONS)
 LIGHTING_KEYS = tuple(i.key for i in LIGHTING)
@@ -117,12 +120,13 @@ def new_node(tree: bpy.types.NodeTree, impl: str) -> bpy.types.Node:
 
 def connect_output(tree: bpy.types.NodeTree, node: bpy.types.Node) -> bpy.types.Node:
     """A Material Output fed by the model: for Cycles only with the OSL shader (EEVEE cannot
-    run it), for every engine with the group."""
+    run it), for every engine with the group. The residual albedo pass is not wired here: it
+    costs every camera hit its inputs, so only a scene that asks for it gets it
+    (light_sync.set_residual_pass)."""
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     out.location = (node.location.x + 400, node.location.y)
     out.target = 'CYCLES' if implementation(node) == "osl" else 'ALL'
     tree.links.new(shader_output(node), out.inputs["Surface"])
-    connect_residual(tree, node)
     return out
 
 
@@ -137,24 +141,42 @@ def residual_output(node: bpy.types.Node) -> bpy.types.NodeSocket | None:
     return None
 
 
+def _residual_aovs(node: bpy.types.Node) -> list:
+    """The AOV Output nodes connect_residual gave the node (its mark RESIDUAL_AOV, never a
+    user's AOV Output of the same pass name)."""
+    residual = residual_output(node)
+    return [
+        link.to_node
+        for link in (residual.links if residual is not None else ())
+        if link.to_node.bl_idname == "ShaderNodeOutputAOV"
+        and link.to_node.get(RESIDUAL_AOV) == OSL_RESIDUAL
+    ]
+
+
+def has_residual(node: bpy.types.Node) -> bool:
+    """Whether connect_residual wired the node's residual albedo to the pass."""
+    return bool(_residual_aovs(node))
+
+
 def connect_residual(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
     """The model's residual albedo (``residual_output``) into an AOV Output named
-    core.model OSL_RESIDUAL, so a view layer with that AOV shows it as a render pass."""
+    core.model OSL_RESIDUAL, so a view layer with that AOV shows it as a render pass (once:
+    a node already wired keeps its AOV Output)."""
     residual = residual_output(node)
-    if residual is None:
+    if residual is None or has_residual(node):
         return
     aov = tree.nodes.new("ShaderNodeOutputAOV")
     aov.location = (node.location.x + 400, node.location.y - 200)
     aov.aov_name = OSL_RESIDUAL
+    aov[RESIDUAL_AOV] = OSL_RESIDUAL
     tree.links.new(residual, aov.inputs["Color"])
 
 
 def remove_residual(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
-    """Remove the AOV Output that connect_residual gave the node (before the node goes)."""
-    residual = residual_output(node)
-    for link in list(residual.links) if residual is not None else ():
-        if link.to_node.bl_idname == "ShaderNodeOutputAOV":
-            tree.nodes.remove(link.to_node)
+    """Remove the AOV Output that connect_residual gave the node (an AOV Output it did not
+    make stays, with its link)."""
+    for aov in _residual_aovs(node):
+        tree.nodes.remove(aov)
 
 
 def link_geometry_normal(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None:
@@ -337,12 +359,14 @@ def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bp
         set_option(new, key, value)
     for link in list(shader_output(old).links):
         tree.links.new(shader_output(new), link.to_socket)
+    residual = has_residual(old)
     remove_residual(tree, old)
     drivers.remove_drivers(tree, old)
     tree.nodes.remove(old)
     new.name = new.label = NODE_NAME
     link_geometry_normal(tree, new)
-    connect_residual(tree, new)
+    if residual:
+        connect_residual(tree, new)
     return new
 
 

@@ -76,6 +76,7 @@ def _transport_box(layout, scene, node) -> None:
                 text="Not exact with " + ", ".join(inexact) + " (Render Properties > Light Paths)",
                 icon='ERROR',
             )
+        box.prop(scene, "ctlab_residual_pass")
 
 
 class CTLAB_PT_material(bpy.types.Panel):
@@ -259,6 +260,7 @@ class CTLAB_PT_sidebar_materials(_Sidebar, bpy.types.Panel):
         )
         layout.operator(CTLAB_OT_new_material.bl_idname, icon='ADD')
         layout.prop(context.scene, "ctlab_sun")
+        layout.prop(context.scene, "ctlab_residual_pass")
         layout.operator(CTLAB_OT_sync_lighting.bl_idname, icon='FILE_REFRESH')
         row = layout.row(align=True)
         row.operator(CTLAB_OT_export_materialx.bl_idname, text="Export MaterialX", icon='EXPORT')

@@ -4,7 +4,8 @@
   ``ctlab_ibl``, ``ctlab_light_transport``: dropdowns that read and write the material's
   Cook-Torrance node itself (get/set functions), so they can never disagree with it; unusable
   on materials without the model.
-- ``Scene.ctlab_sun``: the Sun the model's key light follows (empty: the scene's first Sun).
+- ``Scene.ctlab_sun``: the Sun the model's key light follows (empty: the scene's first Sun);
+  ``ctlab_residual_pass``: the residual albedo pass, read and written through light_sync.
 - ``WindowManager.ctlab_job_*``: the background comparison's progress, for the sidebar;
   ``ctlab_plot_*``: the BRDF plot's, for the material panel.
 """
@@ -12,7 +13,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, PointerProperty, StringProperty
 
 from ..blender import model_node
 from ..core.model import OPTION_VALUES
@@ -59,6 +60,7 @@ def _option_property(key: str, name: str, items, description: str):
                 from ..blender import light_sync
 
                 light_sync.update_environment(node, bpy.context.scene)
+                light_sync.update_residual(mat.node_tree, node, bpy.context.scene)
         except UserError as exc:  # a setter cannot report: the console, and no change
             print(f"Cook-Torrance Lab: {exc}")
 
@@ -74,6 +76,18 @@ def _sun_changed(scene, context):
 
     for mat, _ in light_sync.user_materials():
         light_sync.sync_material(mat, scene, environment=False)
+
+
+def _get_residual_pass(scene):
+    from ..blender import light_sync
+
+    return light_sync.residual_pass(scene)
+
+
+def _set_residual_pass(scene, on):
+    from ..blender import light_sync
+
+    light_sync.set_residual_pass(scene, on)
 
 
 def register() -> None:
@@ -113,6 +127,13 @@ def register() -> None:
         update=_sun_changed,
         description="The Sun the Cook-Torrance key light follows; empty: the scene's first Sun",
     )
+    bpy.types.Scene.ctlab_residual_pass = BoolProperty(
+        name="Residual Albedo Pass",
+        get=_get_residual_pass,
+        set=_set_residual_pass,
+        description="The scene transport's residual albedo as the render pass residual_albedo "
+        "(Shader AOV); off by default, as it costs every camera hit the correction's inputs",
+    )
     W = bpy.types.WindowManager
     W.ctlab_job_progress = FloatProperty(name="Progress", subtype='FACTOR', min=0, max=1)
     W.ctlab_job_message = StringProperty(name="Comparison")
@@ -134,7 +155,7 @@ NAMES = (
             "ctlab_light_transport",
         ),
     ),
-    (bpy.types.Scene, ("ctlab_sun",)),
+    (bpy.types.Scene, ("ctlab_sun", "ctlab_residual_pass")),
     (
         bpy.types.WindowManager,
         (

@@ -253,3 +253,57 @@ def test_switch_implementation_and_view_on_all(addon):
         "spec_color",
         "spec_color",
     ]
+
+
+def _aovs(mat):
+    return [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"]
+
+
+@pytest.mark.parametrize("impl", ["nodes", "osl"])
+def test_the_residual_pass_is_opt_in(addon, impl):
+    """A converted material (scene transport) feeds no AOV Output until the scene asks for the
+    residual albedo pass: an AOV Output makes Cycles' SVM compute everything that feeds it at
+    every camera hit, before any closure is skipped (bench/results.md). Asked for, each such
+    material gets one AOV Output of the pass (not a second when asked again), the view layer
+    its AOV, a switch of implementation keeps it; switching the material to the lab transport
+    or the scene's pass off removes that node and leaves a user's AOV Output of the same pass
+    name, fed by the same output, where it is."""
+    from addon.blender import light_sync
+    from addon.core.model import OSL_RESIDUAL
+
+    scene = bpy.context.scene
+    cube = bpy.data.objects["Cube"]
+    bpy.context.view_layer.objects.active = cube
+    cube.select_set(True)
+    mat = _user_principled(cube)
+    assert bpy.ops.ctlab.convert_to_cook_torrance(scope='ACTIVE', implementation=impl) == {
+        'FINISHED'
+    }
+    node = model_node.find(mat)
+    assert model_node.get_option(node, "light_transport") == "scene"
+    assert _aovs(mat) == [] and not scene.ctlab_residual_pass
+    assert OSL_RESIDUAL not in scene.view_layers[0].aovs
+
+    scene.ctlab_residual_pass = True
+    scene.ctlab_residual_pass = True
+    (aov,) = _aovs(mat)
+    assert aov.aov_name == OSL_RESIDUAL
+    assert aov.inputs["Color"].links[0].from_socket == model_node.residual_output(node)
+    assert OSL_RESIDUAL in scene.view_layers[0].aovs
+    light_sync.sync_material(mat, scene, environment=False)
+    assert len(_aovs(mat)) == 1
+    other = "osl" if impl == "nodes" else "nodes"
+    assert bpy.ops.ctlab.switch_implementation(target=other) == {'FINISHED'}
+    node = model_node.find(mat)
+    (aov,) = _aovs(mat)
+    assert aov.inputs["Color"].links[0].from_socket == model_node.residual_output(node)
+
+    mine = mat.node_tree.nodes.new("ShaderNodeOutputAOV")  # the user's own
+    mine.aov_name = OSL_RESIDUAL
+    mat.node_tree.links.new(model_node.residual_output(node), mine.inputs["Color"])
+    mat.ctlab_light_transport = "lab"
+    assert _aovs(mat) == [mine]
+    mat.ctlab_light_transport = "scene"
+    assert len(_aovs(mat)) == 2
+    scene.ctlab_residual_pass = False
+    assert _aovs(mat) == [mine] and mine.inputs["Color"].is_linked

@@ -98,9 +98,9 @@ def show_residual(mat, node):
 @pytest.fixture(scope="module")
 def residual_pass(tmp_path_factory):
     """One white metal sphere (F = 1, smoothness 0.5), Cook-Torrance G, scene transport, the
-    material as the project makes it (its AOV Output) and the view layer's AOV as light sync
-    adds it; the surface shows the residual as an emission, so that one render at the pixel
-    centres holds both the shader's output value (Combined) and the pass."""
+    material with the AOV Output and the view layer's AOV that light sync adds where the
+    scene asks for the pass; the surface shows the residual as an emission, so that one render
+    at the pixel centres holds both the shader's output value (Combined) and the pass."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     s = MatrixSettings(
         rows=1,
@@ -117,11 +117,13 @@ def residual_pass(tmp_path_factory):
     desc = scene_builder.build_matrix(scene, s, scene_builder.environment_files(s))
     mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
     node = model_node.find(mat)
+    # the pass as a scene asks for it (the matrix's material is not a user's: asked directly)
+    light_sync.set_residual_pass(scene, True)
+    light_sync.update_residual(mat.node_tree, node, scene)
     assert any(
         link.to_node.bl_idname == "ShaderNodeOutputAOV" and link.to_node.aov_name == OSL_RESIDUAL
         for link in node.outputs[OSL_RESIDUAL].links
     ), "no AOV Output for the pass"
-    light_sync.add_residual_pass(scene)
     show_residual(mat, node)
     out = tmp_path_factory.mktemp("residual-pass")
     channels = render_layers(scene, out, True, samples=1, pixel_centres=True)

@@ -458,7 +458,7 @@ def test_the_residual_albedo_output_is_the_quadrature(tmp_path, g_model, energy)
     centre (n.v from the sphere's geometry), equals an independent quadrature of
     |f_model - f_closure| (n.l) (specular and diffuse parts) in every band of n.v."""
     import bpy
-    from addon.blender import model_node, renderer, scene_builder
+    from addon.blender import light_sync, model_node, renderer, scene_builder
     from addon.core import compare
     from addon.core.model import OSL_RESIDUAL, ModelOptions
     from addon.core.settings import MatrixSettings
@@ -488,6 +488,8 @@ def test_the_residual_albedo_output_is_the_quadrature(tmp_path, g_model, energy)
         mat = next(m for m in bpy.data.materials if m.get(scene_builder.TAG))
         node = model_node.find(mat)
         residual = node.outputs["Residual Albedo"]
+        light_sync.set_residual_pass(scene, True)
+        light_sync.update_residual(mat.node_tree, node, scene)
         aovs = [
             link.to_node
             for link in residual.links
