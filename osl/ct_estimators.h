@@ -94,14 +94,19 @@ void slot_lights(Light lights[8], point P, Surface sf, float p_spec, int rays, p
 void baked_light(EnvMap env, string ibl, Surface sf, Geometry g, float metallic, Want w,
                  output color result)
 {
+    vector r;
+    float x;
+    baked_lookup(env, ibl, sf.g_model, sf.n, sf.v, g.NdotV, sf.pr, r, x);
+    color L = prefiltered_radiance(env.bake, env.width, r, x, env.rotation, env.strength,
+                                   env.bottom_up);
+    color E = irradiance(env.bake, env.width, sf.n, env.rotation, env.strength, env.bottom_up);
     color spec_i = color(0), diff_i = color(0);
     if (ibl != "unity")
-        indirect_split_sum(env, sf.g_model, sf.diffuse_model, sf.n, sf.v, g.NdotV, sf.pr, sf.a,
-                           ibl == "split_sum_corrected", sf.specColor, sf.diffColor, spec_i,
-                           diff_i);
+        indirect_split_sum(env, sf.g_model, sf.diffuse_model, g.NdotV, sf.pr, L, E,
+                           sf.specColor, sf.diffColor, spec_i, diff_i);
     else
-        indirect_unity(env, sf.n, sf.v, g.NdotV, sf.pr, sf.a, metallic, sf.specColor,
-                       sf.diffColor, spec_i, diff_i);
+        indirect_unity(g.NdotV, sf.pr, sf.a, metallic, L, E, sf.specColor, sf.diffColor,
+                       spec_i, diff_i);
     spec_i *= sf.k_ms;
     if (w.diffuse) result += diff_i;
     if (w.specular) result += spec_i;
