@@ -39,12 +39,12 @@ VARIANTS = {
     "(a Light Path gate)",
     "no per-light groups": "the key Sun's and the eight light slots' groups (the per-light "
     "correction and the lab's direct light)",
-    "no residual pass": "the materials' AOV Output of the Residual Albedo (the render pass "
-    "residual_albedo) and what computes it",
+    "with residual pass": "nothing, and it adds the Residual Albedo Pass (off by default: "
+    "light_sync.set_residual_pass), the materials' AOV Output and what computes it",
     "energy none": "the conversion's compensated energy (set to none after it: another model, "
     "without the multiple-scattering tables the correction's quantities read)",
-    "closures alone": "the correction's Emission and the residual pass: the Metallic and "
-    "Diffuse BSDFs and what feeds them",
+    "closures alone": "the correction's Emission: the Metallic and Diffuse BSDFs and what "
+    "feeds them",
 }
 
 
@@ -70,31 +70,21 @@ def _unlink(tree, socket) -> None:
 CUTS = {
     "no world correction": ("world",),
     "no per-light groups": ("lights",),
-    "no residual pass": ("residual pass",),
-    "closures alone": ("world", "lights", "residual pass"),
+    "closures alone": ("world", "lights"),
 }
 
 
 def _cut(part: str, main, holder) -> None:
-    """Take one part out: the correction group's world emission, the per-light groups'
-    outputs, or the materials' AOV Output nodes (the residual pass)."""
-    import bpy
-
+    """Take one part out: the correction group's world emission or the per-light groups'
+    outputs."""
     if part == "world":
         _unlink(main, holder.outputs["Correction"])
-    elif part == "lights":
+    else:
         for node in main.nodes:
             tree = getattr(node, "node_tree", None)
             if tree is not None and tree.name.endswith(" Light"):
                 for socket in node.outputs:
                     _unlink(main, socket)
-    else:
-        for mat in bpy.data.materials:
-            if mat.node_tree is not None:
-                for node in [
-                    n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"
-                ]:
-                    mat.node_tree.nodes.remove(node)
 
 
 def apply_variant(variant: str):
@@ -131,6 +121,10 @@ def apply_variant(variant: str):
             main.links.new(invert.outputs[0], gate.inputs["Fac"])
             main.links.new(holder.outputs["Correction"], gate.inputs[1])
             main.links.new(gate.outputs[0], target)
+        elif variant == "with residual pass":
+            from addon.blender import light_sync
+
+            light_sync.set_residual_pass(bpy.context.scene, True)
         elif variant == "energy none":
             from addon.blender import model_node
 
