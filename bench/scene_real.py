@@ -191,6 +191,9 @@ def _child_render(
         scene, scene.camera, job.size, job.samples, job.seed, osl, job.notes
     )
     d = renderer.render(scene, Path(out), {"side": side}, os.devnull)
+    if info.get("layers"):  # a hook asks for the Material Index pass (bench/scene_depth.py)
+        result = bpy.data.images["Render Result"]
+        comparison_render.save_layers(scene, result, Path(out) / "layers.exr")
     info.update({k: d.get(k) for k in ("render_seconds", "sync_seconds", "cycles_render_seconds")})
     print("RESULT " + json.dumps(info), flush=True)
 

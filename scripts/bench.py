@@ -13,12 +13,13 @@ process's wall time is reported beside it.
 Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only``
 re-runs the named sections (render, error, main, bake, scene, graph, scene-real: every
 material of a product shot converted, scene-cost: what each part of the converted group
-costs there, and scene-samples: the OSL correction's samples at equal error) and keeps the
-others from results.json. Each section is a module of bench/ (bench/__init__.py); this script
-is the benchmark's one entry point: the options, which sections run, the results written,
-and the sections' child processes (``--child SECTION ARGS``, bench/common.py ``child``).
-``--pairs`` and ``--config`` go to the sections that take them (scene-real, scene-cost);
-``--no-write`` prints the tables and leaves results.json and results.md as they are.
+costs there, scene-samples: the OSL correction's samples at equal error, and scene-depth:
+the correction's depth, its fidelity and time) and keeps the others from results.json.
+Each section is a module of bench/ (bench/__init__.py); this script is the benchmark's one
+entry point: the options, which sections run, the results written, and the sections' child
+processes (``--child SECTION ARGS``, bench/common.py ``child``). ``--pairs`` and ``--config``
+go to the sections that take them (scene-real, scene-cost, scene-depth); ``--no-write``
+prints the tables and leaves results.json and results.md as they are.
 Converged images for the error study are cached in out/bench-cache (keyed by Blender's
 version, the renderer, the scene and the model's sources).
 """
@@ -44,6 +45,7 @@ from bench import (  # noqa: E402
     main_job,
     render_time,
     scene_cost,
+    scene_depth,
     scene_real,
     scene_samples,
     scene_transport,
@@ -84,6 +86,11 @@ SECTIONS = {
         scene_samples.bench_scene_samples,
         scene_samples.scene_samples_table,
     ),
+    "scene-depth": (
+        "The correction's depth: fidelity and time",
+        scene_depth.bench_scene_depth,
+        scene_depth.scene_depth_table,
+    ),
 }
 
 
@@ -118,6 +125,7 @@ CHILD_HOOKS = {
     "scene-real": None,
     "scene-cost": scene_cost.apply_variant,
     "scene-samples": scene_samples.with_samples,
+    "scene-depth": scene_depth.with_depth,
 }
 
 
@@ -132,7 +140,9 @@ def main():
         choices=list(SECTIONS),
         help="run these sections, keep the others from results.json",
     )
-    ap.add_argument("--pairs", type=int, help="A/B pairs (scene-real, scene-cost; default 2)")
+    ap.add_argument(
+        "--pairs", type=int, help="A/B pairs (scene-real, scene-cost, scene-depth; default 2)"
+    )
     ap.add_argument(
         "--config",
         nargs="+",

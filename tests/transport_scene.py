@@ -33,32 +33,27 @@ shader reference(color f0 = 0.04, color diffColor = 0, float alpha = 0.25,
 """
 
 
-def diffuse_material(name, colour):
+def _one_node_material(name, idname, colour):
+    """A material whose surface is one node of ``idname`` (its Color input ``colour``)."""
     import bpy
 
     mat = bpy.data.materials.new(name)
     compat.use_nodes(mat)
     nt = mat.node_tree
     nt.nodes.clear()
-    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    d.inputs["Color"].default_value = tuple(colour) + (1.0,)
+    node = nt.nodes.new(idname)
+    node.inputs["Color"].default_value = tuple(colour) + (1.0,)
     out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(d.outputs["BSDF"], out.inputs["Surface"])
+    nt.links.new(node.outputs[0], out.inputs["Surface"])
     return mat
+
+
+def diffuse_material(name, colour):
+    return _one_node_material(name, "ShaderNodeBsdfDiffuse", colour)
 
 
 def emission_material(name, colour):
-    import bpy
-
-    mat = bpy.data.materials.new(name)
-    compat.use_nodes(mat)
-    nt = mat.node_tree
-    nt.nodes.clear()
-    e = nt.nodes.new("ShaderNodeEmission")
-    e.inputs["Color"].default_value = tuple(colour) + (1.0,)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(e.outputs["Emission"], out.inputs["Surface"])
-    return mat
+    return _one_node_material(name, "ShaderNodeEmission", colour)
 
 
 class Scene:

@@ -321,6 +321,13 @@ def _scene_transport(b: Compiler, spec: dict, view_on: list, lab, correction_gro
         group.outputs[CORRECTION_OUTPUTS["correction_world"][0]],
         "correction: the lights + the world",
     )
+    # the correction's reach: hits of a ray depth below Correction Depth
+    path = b.new("ShaderNodeLightPath")
+    reach = b.call("math.LESS_THAN", [path.outputs["Ray Depth"], b.socket("in.Correction Depth")])
+    reach.node.label = "ray depth < Correction Depth"
+    b.current_frame = frame
+    correct = b.call("math.MULTIPLY", [correct, reach])
+    correct.node.label = "correct here"
     scene = add(
         model_closures,
         mix(correct, None, correction, "correction (0: the closures are the model)"),

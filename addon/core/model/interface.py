@@ -160,6 +160,23 @@ OPTIONS = (
     ),
 )
 
+# How far the scene transport's correction reaches: both implementations.
+TRANSPORT = (
+    Input(
+        "correction_depth",
+        "Correction Depth",
+        "INT",
+        2,
+        "The scene transport's correction at hits of a ray depth below this (1: camera hits, "
+        "2: and the first bounce; a number above the scene's bounces: every hit); deeper, the "
+        "closures alone",
+        osl="correction_depth",
+        group="Correction Depth",
+        min=1,
+        max=1024,
+    ),
+)
+
 # The key light and the world, as drivers and the sync handler keep them (light_sync).
 LIGHTING = (
     Input(
@@ -409,7 +426,7 @@ OSL_ONLY = (
     ),
 )
 
-INPUTS = SURFACE + OPTIONS + LIGHTING + LIGHTS + OSL_ONLY
+INPUTS = SURFACE + OPTIONS + TRANSPORT + LIGHTING + LIGHTS + OSL_ONLY
 GROUP_INPUTS = tuple(i for i in INPUTS if i.group)  # the node group's sockets, in order
 OSL_INPUTS = tuple(i for i in INPUTS if i.osl)  # the OSL shader's parameters
 BY_KEY = {i.key: i for i in INPUTS}
