@@ -5,8 +5,8 @@ alone.
 The camera sees the model's sphere only in a perfect mirror (a white Principled metal of
 roughness 0, at 45 degrees), so every pixel of the sphere is a hit of ray depth 1. There:
 - with Correction Depth 1 the sphere is its closures alone, which are the same for the
-  Cook-Torrance G as for Smith's G (f_closure has Smith's G): the render equals, to the last
-  bit, the render of the Smith-G material (whose closures are the model, uncorrected at every
+  Cook-Torrance G as for Smith's G (f_closure has Smith's G): the render equals, to float
+  rounding, the render of the Smith-G material (whose closures are the model, uncorrected at every
   depth);
 - with Correction Depth 2 the correction is back: the render differs from that one by more
   than the noise of a second seed, and equals the render with the correction at every depth
@@ -96,9 +96,12 @@ def test_the_correction_reaches_the_depth_it_is_given(tmp_path, impl):
     disc = _disc()
     closures = _render(tmp_path, impl, "cook_torrance", 1)
     smith = _render(tmp_path, impl, "smith_ggx_correlated", 1)
-    assert np.array_equal(closures, smith), (
+    # the same closures, the same samples: equal to float rounding (bit for bit on 5.2; 4.5's
+    # OSL optimiser folds the closures' weights in another order, 2e-5 at most)
+    diff = float(np.abs(closures - smith).max())
+    assert diff <= 1e-4 * float(smith.max()), (
         f"at depth 1 with Correction Depth 1 the sphere is not its closures alone: max "
-        f"difference {np.abs(closures - smith).max():.3g} from the Smith-G material's"
+        f"difference {diff:.3g} from the Smith-G material's"
     )
     corrected = _render(tmp_path, impl, "cook_torrance", 2)
     everywhere = _render(tmp_path, impl, "cook_torrance", 1024)
