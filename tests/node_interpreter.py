@@ -1,7 +1,8 @@
 """A small interpreter of the node group's Math and Vector Math nodes (for the tests of the
 scene transport's structure, tests/slow/test_scene_transport_nodes.py): ``evaluate`` follows
 a socket's links back through the group, computing each node's operation in numpy from the
-group's input values (``group_inputs``), so that a formula of the description can be checked
+group's input values (``group_inputs``) and the path's (a Light Path node: a camera hit
+unless told), so that a formula of the description can be checked
 exactly without a render."""
 
 import math
@@ -28,6 +29,10 @@ VECTOR_MATH = {
 }
 
 
+# The Light Path node's outputs at a camera ray's hit, unless ``inputs`` says ("path:NAME")
+LIGHT_PATH = {"Ray Depth": 0.0, "Is Camera Ray": 1.0}
+
+
 def input_value(sock, inputs):
     if sock.is_linked:
         return evaluate(sock.links[0].from_socket, inputs)
@@ -41,6 +46,8 @@ def evaluate(sock, inputs):
     node = sock.node
     if node.bl_idname == "NodeGroupInput":
         return inputs[sock.name]
+    if node.bl_idname == "ShaderNodeLightPath":  # the path at the hit: inputs["path:Ray Depth"]
+        return float(inputs.get(f"path:{sock.name}", LIGHT_PATH[sock.name]))
     if node.bl_idname == "ShaderNodeMath":
         a, b, c = (input_value(s, inputs) for s in node.inputs[:3])
         if node.operation == "COMPARE":

@@ -91,6 +91,13 @@ def test_the_emission_is_the_closures_exactly_for_the_scene_transports_full_view
                 # 0 exactly for the closures' own switches (Smith's G, Lambert; Multiscatter
                 # GGX is the compensated Smith lobe), so Cycles folds the correction away
                 assert fac == float(not (g_model == 1 and lambert == 1)), (g_model, lambert, energy)
+    # and 0 at the hits of a ray depth of Correction Depth and deeper (default 2)
+    for depth, limit in ((0, 2), (1, 2), (2, 2), (3, 2), (0, 1), (1, 1), (5, 1024)):
+        fac = evaluate(
+            source_of(gate.inputs["Fac"]),
+            dict(group_inputs(**{"Correction Depth": limit}), **{"path:Ray Depth": depth}),
+        )
+        assert fac == float(depth < limit), (depth, limit)
     metals = [n for n in scene_nodes if n.bl_idname == "ShaderNodeBsdfMetallic"]
     diffuse = [n for n in scene_nodes if n.bl_idname == "ShaderNodeBsdfDiffuse"]
     assert len(metals) == 2 and len(diffuse) == 1
