@@ -27,6 +27,7 @@ from ..core.model import (
     OPTIONS,
     OSL_RESIDUAL,
     SURFACE,
+    TRANSPORT,
     Lighting,
     ModelOptions,
     indirect_light,
@@ -41,6 +42,7 @@ RESIDUAL_AOV = "ctlab_residual_aov"
 SURFACE_KEYS = tuple(i.key for i in SURFACE)
 OPTION_KEYS = tuple(i.key for i in OPTIONS)
 LIGHTING_KEYS = tuple(i.key for i in LIGHTING)
+TRANSPORT_KEYS = tuple(i.key for i in TRANSPORT)
 
 
 def implementation(node: bpy.types.Node) -> str | None:
@@ -87,6 +89,14 @@ def surface_input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
 def lighting_input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
     """The socket of a key-light or world input (core.model LIGHTING: sun_to_light, ...)."""
     if key not in LIGHTING_KEYS:
+        raise KeyError(key)
+    return _input(node, key)
+
+
+def transport_input(node: bpy.types.Node, key: str) -> bpy.types.NodeSocket:
+    """The socket of an input of the scene transport both implementations have (core.model
+    TRANSPORT: correction_depth)."""
+    if key not in TRANSPORT_KEYS:
         raise KeyError(key)
     return _input(node, key)
 
@@ -340,7 +350,8 @@ def _is_geometry_normal(sock: bpy.types.NodeSocket) -> bool:
 
 def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bpy.types.Node:
     """Replace the model node ``old`` by one of implementation ``impl``, keeping every link and
-    value of the surface inputs, the options and the output links. The reference IBL becomes
+    value of the surface inputs, the options, the scene transport's inputs (TRANSPORT) and
+    the output links. The reference IBL becomes
     split_sum on the node group. Drivers on ``old`` are removed (light sync adds them again)."""
     new = new_node(tree, impl)
     new.location = old.location
@@ -357,6 +368,8 @@ def replace_node(tree: bpy.types.NodeTree, old: bpy.types.Node, impl: str) -> bp
         if key == "ibl":
             value = indirect_light(impl, value)
         set_option(new, key, value)
+    for key in TRANSPORT_KEYS:
+        carry_input(tree, transport_input(old, key), transport_input(new, key))
     for link in list(shader_output(old).links):
         tree.links.new(shader_output(new), link.to_socket)
     residual = has_residual(old)

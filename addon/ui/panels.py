@@ -76,6 +76,8 @@ def _transport_box(layout, scene, node) -> None:
                 text="Not exact with " + ", ".join(inexact) + " (Render Properties > Light Paths)",
                 icon='ERROR',
             )
+        depth = model_node.transport_input(node, "correction_depth")
+        box.prop(depth, "default_value", text="Correction Depth")
         box.prop(scene, "ctlab_residual_pass")
 
 

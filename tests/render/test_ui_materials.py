@@ -265,9 +265,9 @@ def test_the_residual_pass_is_opt_in(addon, impl):
     residual albedo pass: an AOV Output makes Cycles' SVM compute everything that feeds it at
     every camera hit, before any closure is skipped (bench/results.md). Asked for, each such
     material gets one AOV Output of the pass (not a second when asked again), the view layer
-    its AOV, a switch of implementation keeps it; switching the material to the lab transport
-    or the scene's pass off removes that node and leaves a user's AOV Output of the same pass
-    name, fed by the same output, where it is."""
+    its AOV, a switch of implementation keeps it (and the Correction Depth); switching the
+    material to the lab transport or the scene's pass off removes that node and leaves a
+    user's AOV Output of the same pass name, fed by the same output, where it is."""
     from addon.blender import light_sync
     from addon.core.model import OSL_RESIDUAL
 
@@ -293,8 +293,10 @@ def test_the_residual_pass_is_opt_in(addon, impl):
     light_sync.sync_material(mat, scene, environment=False)
     assert len(_aovs(mat)) == 1
     other = "osl" if impl == "nodes" else "nodes"
+    model_node.transport_input(node, "correction_depth").default_value = 5
     assert bpy.ops.ctlab.switch_implementation(target=other) == {'FINISHED'}
     node = model_node.find(mat)
+    assert model_node.transport_input(node, "correction_depth").default_value == 5
     (aov,) = _aovs(mat)
     assert aov.inputs["Color"].links[0].from_socket == model_node.residual_output(node)
 

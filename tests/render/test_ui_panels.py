@@ -93,6 +93,9 @@ def test_the_panel_says_what_each_transport_sees_and_warns_of_inexact_settings(a
         ]
 
     assert mat.ctlab_light_transport == "scene"  # the UI's default
+    calls = draw(ui.CTLAB_PT_material, object=cube, material=mat)
+    assert ("prop", "default_value") in calls  # the node's Correction Depth
+    assert ("prop", "ctlab_residual_pass") in calls
     text = labels()
     assert any(t.startswith("Scene: path traced by Cycles") for t in text)
     (warning,) = [t for t in text if t.startswith("Not exact with")]

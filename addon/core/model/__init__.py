@@ -52,6 +52,7 @@ from .interface import (
     OSL_OUTPUTS,
     OSL_RESIDUAL,
     SURFACE,
+    TRANSPORT,
     light_key,
 )
 from .derived import (
@@ -128,6 +129,7 @@ __all__ = [
     "SCENE_UNITS_PROBLEM",
     "SCENE_VIEWS",
     "SHADERS",
+    "TRANSPORT",
     "SURFACE",
     "TERM_VIEWS",
     "UNITS",
