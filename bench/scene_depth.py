@@ -38,12 +38,16 @@ def with_depth(depth: str, seed: str):
 
         from addon.blender import model_node
 
-        index = {}
-        for i, mat in enumerate(sorted(m.name for m in bpy.data.materials)):
-            node = model_node.find(bpy.data.materials[mat])
-            if node is not None:
-                node.inputs["Correction Depth"].default_value = int(depth)
-                bpy.data.materials[mat].pass_index = index[mat] = i + 1
+        converted = sorted(
+            (m for m in bpy.data.materials if model_node.find(m) is not None),
+            key=lambda m: m.name,
+        )
+        for i, mat in enumerate(converted, 1):
+            model_node.transport_input(
+                model_node.find(mat), "correction_depth"
+            ).default_value = int(depth)
+            mat.pass_index = i
+        index = {m.name: m.pass_index for m in converted}
         info.update(depth=int(depth), seed=int(seed), layers=True, pass_index=index)
 
     return apply
