@@ -13,8 +13,9 @@ process's wall time is reported beside it.
 Writes bench/results.json and bench/results.md (docs/testing.md, "Benchmark"). ``--only``
 re-runs the named sections (render, error, main, bake, scene, graph, scene-real: every
 material of a product shot converted, scene-cost: what each part of the converted group
-costs there, scene-samples: the OSL correction's samples at equal error, and scene-depth:
-the correction's depth, its fidelity and time) and keeps the others from results.json.
+costs there, scene-samples: the OSL correction's samples at equal error, scene-depth: the
+correction's depth, its fidelity and time, and material-files: a converted material's sync
+and .blend size) and keeps the others from results.json.
 Each section is a module of bench/ (bench/__init__.py); this script is the benchmark's one
 entry point: the options, which sections run, the results written, and the sections' child
 processes (``--child SECTION ARGS``, bench/common.py ``child``). ``--pairs`` and ``--config``
@@ -43,6 +44,7 @@ from bench import (  # noqa: E402
     bake,
     equal_error,
     main_job,
+    material_files,
     render_time,
     scene_cost,
     scene_depth,
@@ -91,6 +93,11 @@ SECTIONS = {
         scene_depth.bench_scene_depth,
         scene_depth.scene_depth_table,
     ),
+    "material-files": (
+        "A converted material's sync and file size",
+        material_files.bench_material_files,
+        material_files.material_files_table,
+    ),
 }
 
 
@@ -127,10 +134,14 @@ CHILD_HOOKS = {
     "scene-samples": scene_samples.with_samples,
     "scene-depth": scene_depth.with_depth,
 }
+# A section whose child process is its own (not a render of bench/scene_real.py's shot)
+CHILD_MAINS = {"material-files": material_files.child_main}
 
 
 def main():
     if sys.argv[1:2] == ["--child"]:
+        if sys.argv[2] in CHILD_MAINS:
+            CHILD_MAINS[sys.argv[2]](sys.argv[3:])
         scene_real.child_main(sys.argv[3:], CHILD_HOOKS[sys.argv[2]])
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="smaller renders (a smoke run)")
