@@ -166,6 +166,7 @@ def sync_material(
     # sampled as a mesh light it throws fireflies on its neighbours.
     if mat.cycles.emission_sampling != 'NONE':
         mat.cycles.emission_sampling = 'NONE'
+    model_node.set_normal_derivatives(node)  # the user may have linked a normal map
     model_node.remove_drivers(tree, node)
     sun = key_sun(scene)
     model_node.add_drivers(tree, node, sun, scene.world)

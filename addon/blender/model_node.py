@@ -197,6 +197,24 @@ def link_geometry_normal(tree: bpy.types.NodeTree, node: bpy.types.Node) -> None
         geometry = tree.nodes.new("ShaderNodeNewGeometry")
         geometry.location = (node.location.x - 250, node.location.y - 350)
         tree.links.new(geometry.outputs["Normal"], sock)
+    set_normal_derivatives(node)
+
+
+def set_normal_derivatives(node: bpy.types.Node) -> None:
+    """OSL: whether the Normal input keeps its derivatives (core.model normal_derivatives,
+    osl/cook_torrance.osl without_derivatives). Kept where the geometry's normal feeds it
+    (they cost nothing there, and dropping them costs the render about 5%); dropped where
+    other nodes do, such as a normal map, which would otherwise run with derivatives at about
+    twice its cost. The rendered values are the same either way. A node of an earlier shader
+    without the input is left as it is."""
+    if implementation(node) != "osl":
+        return
+    sock = surface_input(node, "normal")
+    geometric = not sock.is_linked or sock.links[0].from_node.bl_idname == "ShaderNodeNewGeometry"
+    try:
+        _input(node, "normal_derivatives").default_value = int(geometric)
+    except KeyError:
+        pass
 
 
 # --- The view and the switches ---------------------------------------------------------

@@ -417,6 +417,17 @@ OSL_ONLY = (
         max=2**31 - 1,
     ),
     Input(
+        "normal_derivatives",
+        "Normal Derivatives",
+        "INT",
+        1,
+        "1: the Normal input keeps its derivatives (free for the geometry's normal); 0: it "
+        "drops them, so the nodes feeding it (a normal map) run without, at about half their "
+        "cost under OSL; the same values either way (the add-on sets it from what feeds the "
+        "input)",
+        osl="normal_derivatives",
+    ),
+    Input(
         "tex_bottom_up",
         "Texture Rows Bottom-Up",
         "INT",

@@ -150,6 +150,7 @@ class CTLAB_OT_add_texture(bpy.types.Operator):
             nmap.location = (node.location.x - 300, node.location.y - 300)
             tree.links.new(tex.outputs["Color"], nmap.inputs["Color"])
             tree.links.new(nmap.outputs["Normal"], model_node.surface_input(node, "normal"))
+            model_node.set_normal_derivatives(node)
         tree.nodes.active = tex
         return {'FINISHED'}
 
