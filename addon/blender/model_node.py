@@ -209,12 +209,14 @@ def set_normal_derivatives(node: bpy.types.Node) -> None:
     without the input is left as it is."""
     if implementation(node) != "osl":
         return
-    sock = surface_input(node, "normal")
-    geometric = not sock.is_linked or sock.links[0].from_node.bl_idname == "ShaderNodeNewGeometry"
+    normal = surface_input(node, "normal")
+    keep = not normal.is_linked or normal.links[0].from_node.bl_idname == "ShaderNodeNewGeometry"
     try:
-        _input(node, "normal_derivatives").default_value = int(geometric)
+        flag = _input(node, "normal_derivatives")
     except KeyError:
-        pass
+        return
+    if flag.default_value != int(keep):  # a write re-syncs (recompiles) the shader
+        flag.default_value = int(keep)
 
 
 # --- The view and the switches ---------------------------------------------------------
