@@ -1,5 +1,6 @@
 """What the tests share besides fixtures: the repository's root, a render of the sphere matrix
-through the real pipeline, the sphere mask of a cell, bad HDRIs, and what the bad-input tests
+through the real pipeline, a Sun-lit sphere rendered in this process, the sphere mask of a
+cell, bad HDRIs, and what the bad-input tests
 share (the command as a process, one error line, a folder's listing, a tiny HDRI, Hypothesis'
 settings). Importing this module starts no Blender; ``render`` does."""
 
@@ -65,6 +66,41 @@ def render(
     images = {v: compare.read_image(d / "render.exr") for v, d in dirs.items()}
     scene = json.loads((next(iter(dirs.values())) / "scene.json").read_text())
     return (images if isinstance(view, tuple) else images[view]), scene
+
+
+# The key Sun of sun_lit_sphere's renders (core.model Lighting's fields)
+SUN_LIT = dict(sun_to_light=(0.3, 0.4, 0.87), sun_irradiance=(2.0, 2.0, 2.0))
+
+
+def sun_lit_sphere(size: int):
+    """An empty scene in this process with one smooth UV sphere (64 x 32) before a camera,
+    set to render the model's full view under OSL at pixel centres, ``size`` px square: the
+    scene and the sphere (its material is the caller's; light it with SUN_LIT)."""
+    import bpy
+
+    from addon.blender import renderer
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
+    bpy.ops.object.shade_smooth()
+    camera = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    scene.collection.objects.link(camera)
+    camera.location = (0.0, 0.0, 4.0)
+    scene.camera = camera
+    renderer.configure(scene, "osl", "full", 1, pixel_centres=True)
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.image_settings.file_format = 'OPEN_EXR'
+    return scene, bpy.context.object
+
+
+def render_still(scene, path: Path) -> np.ndarray:
+    """Render the scene into ``path`` (its file format) and return the pixels, flat."""
+    import bpy
+
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    return np.array(bpy.data.images.load(str(path)).pixels[:])
 
 
 def sphere_pixels(scene, cell, margin_px=1.0):

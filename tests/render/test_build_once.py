@@ -249,37 +249,19 @@ def test_conversion_keeps_principleds_energy(impl):
 
 
 def _render_sphere(node_setup, tmp_path, name):
-    """A 24 px render of a sphere lit by the key Sun alone (no world: nothing sampled), its
-    model node an OSL node that ``node_setup`` gives its bytecode."""
-    import numpy as np
+    """A render of a sphere lit by the key Sun alone (no world: nothing sampled), its model
+    node an OSL node that ``node_setup`` gives its bytecode."""
+    from helpers import SUN_LIT, render_still, sun_lit_sphere
 
-    from addon.blender import materials, renderer
+    from addon.blender import materials
     from addon.core.model import Lighting, ModelOptions
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0)
-    bpy.ops.object.shade_smooth()
-    camera = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, 0.0, 4.0)
-    scene.camera = camera
-    mat = materials.model_material(
-        "sphere",
-        "osl",
-        ModelOptions(ibl="split_sum"),
-        Lighting(sun_to_light=(0.3, 0.4, 0.87), sun_irradiance=(2.0, 2.0, 2.0)),
-        metallic=0.5,
-    )
+    scene, sphere = sun_lit_sphere(24)
+    options, lighting = ModelOptions(ibl="split_sum"), Lighting(**SUN_LIT)
+    mat = materials.model_material("sphere", "osl", options, lighting, metallic=0.5)
     node_setup(model_node.find(mat))
-    scene.objects["Sphere"].data.materials.append(mat)
-    renderer.configure(scene, "osl", "full", 1, pixel_centres=True)
-    scene.render.resolution_x = scene.render.resolution_y = 24
-    scene.render.image_settings.file_format = 'OPEN_EXR'
-    scene.render.filepath = str(tmp_path / f"{name}.exr")
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(scene.render.filepath)
-    return np.array(image.pixels[:])
+    sphere.data.materials.append(mat)
+    return render_still(scene, tmp_path / f"{name}.exr")
 
 
 def test_the_stored_bytecode_is_portable(tmp_path):

@@ -302,35 +302,24 @@ def test_a_normal_map_feeds_the_osl_shader_without_derivatives(tmp_path):
     within 2e-6 on 4.5), and differs from the plain sphere. Mutation checks: a message read
     back as another type than it was set fails silently and renders a zero normal (the
     equality fails); without set_normal_derivatives the input stays 1."""
-    from addon.blender import materials, model_node, renderer
+    from helpers import SUN_LIT, render_still, sun_lit_sphere
+
+    from addon.blender import materials, model_node
     from addon.core.model import Lighting, ModelOptions
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=64, ring_count=32)
-    bpy.ops.object.shade_smooth()
-    sphere = scene.objects["Sphere"]
-    camera = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
-    scene.collection.objects.link(camera)
-    camera.location = (0.0, 0.0, 4.0)
-    scene.camera = camera
-    lighting = Lighting(sun_to_light=(0.3, 0.4, 0.87), sun_irradiance=(2.0, 2.0, 2.0))
+    scene, sphere = sun_lit_sphere(48)
+    lighting = Lighting(**SUN_LIT)
     image = bpy.data.images.load(str(textures.SEED_NORMAL))
     mapped = materials.model_material("mapped", "osl", ModelOptions(), lighting, normal_map=image)
     plain = materials.model_material("plain", "osl", ModelOptions(), lighting)
     derivatives = model_node._input(model_node.find(mapped), "normal_derivatives")
     assert derivatives.default_value == 0
     assert model_node._input(model_node.find(plain), "normal_derivatives").default_value == 1
-    renderer.configure(scene, "osl", "full", 1, pixel_centres=True)
-    scene.render.resolution_x = scene.render.resolution_y = 48
-    scene.render.image_settings.file_format = 'OPEN_EXR'
 
     def rendered(mat, name):
         sphere.data.materials.clear()
         sphere.data.materials.append(mat)
-        scene.render.filepath = str(tmp_path / f"{name}.exr")
-        bpy.ops.render.render(write_still=True)
-        return np.array(bpy.data.images.load(scene.render.filepath).pixels[:])
+        return render_still(scene, tmp_path / f"{name}.exr")
 
     without = rendered(mapped, "without")
     derivatives.default_value = 1
