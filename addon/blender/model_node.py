@@ -47,9 +47,10 @@ TRANSPORT_KEYS = tuple(i.key for i in TRANSPORT)
 
 def implementation(node: bpy.types.Node) -> str | None:
     """ "osl", "nodes", or None when the node is not the model."""
-    if node.bl_idname == "ShaderNodeScript":
-        script = node.script
-        if script is not None and script.name.startswith(osl_shader.TEXT_NAME):
+    script = osl_shader.script_node(node)
+    if script is not None:
+        text = script.script
+        if text is not None and text.name.startswith(osl_shader.TEXT_NAME):
             return "osl"
     elif node.bl_idname == "ShaderNodeGroup":
         if node.node_tree is not None and node.node_tree.get(node_group.TAG):
@@ -113,9 +114,10 @@ def shader_output(node: bpy.types.Node) -> bpy.types.NodeSocket:
 def new_node(tree: bpy.types.NodeTree, impl: str) -> bpy.types.Node:
     """A new Cook-Torrance node of the given implementation in ``tree`` (unlinked); the node
     group's indirect light starts as split_sum (it has no reference mode)."""
-    if impl == "osl":
-        node = tree.nodes.new("ShaderNodeScript")
-        osl_shader.compile_script_node(node)
+    if impl == "osl":  # the shared compiled shader (osl_shader.shared_group)
+        node = tree.nodes.new("ShaderNodeGroup")
+        node.node_tree = osl_shader.shared_group()
+        node.width = 220
     elif impl == "nodes":
         node = tree.nodes.new("ShaderNodeGroup")
         node.node_tree = node_group.ensure_group()
@@ -145,7 +147,10 @@ def residual_output(node: bpy.types.Node) -> bpy.types.NodeSocket | None:
     node group's Residual Albedo where its interface has one (core.model GROUP_OUTPUTS);
     None when the node has none."""
     if implementation(node) == "osl":
-        return node.outputs.get(OSL_RESIDUAL)
+        try:
+            return osl_shader.socket(node, OSL_RESIDUAL, output=True)
+        except KeyError:
+            return None
     if implementation(node) == "nodes":
         return node.outputs.get(node_group.RESIDUAL_OUTPUT)
     return None
@@ -232,18 +237,23 @@ def get_option(node: bpy.types.Node, key: str) -> str:
     return values[min(max(int(value), 0), len(values) - 1)]
 
 
-def set_option(node: bpy.types.Node, key: str, value: str) -> None:
-    """Set a switch or the view; an unknown value, or the reference IBL on the node group,
-    is a UserError that says what to choose."""
+def _check_option(key: str, value: str) -> None:
     values = OPTION_VALUES[key]
     if value not in values:
         raise UserError(
             f"unknown {key.replace('_', ' ')} {value!r}; choose one of: {', '.join(values)}"
         )
-    sock = _input(node, key)
+
+
+def set_option(node: bpy.types.Node, key: str, value: str) -> None:
+    """Set a switch or the view; an unknown value, or the reference IBL on the node group,
+    is a UserError that says what to choose."""
+    _check_option(key, value)
     if implementation(node) == "osl":
-        sock.default_value = value
-    elif key == "ibl":
+        osl_shader.set_strings(node, {BY_KEY[key].osl: value})
+        return
+    sock = _input(node, key)
+    if key == "ibl":
         if value not in BAKED_IBL_MODES:
             raise UserError(
                 f"the node group has no {value!r} indirect light (it cannot "
@@ -253,7 +263,7 @@ def set_option(node: bpy.types.Node, key: str, value: str) -> None:
             )
         sock.default_value = BAKED_IBL_MODES.index(value)
     else:
-        sock.default_value = values.index(value)
+        sock.default_value = OPTION_VALUES[key].index(value)
 
 
 def set_defaults(node: bpy.types.Node, context: str, **options) -> None:
@@ -261,11 +271,18 @@ def set_defaults(node: bpy.types.Node, context: str, **options) -> None:
     fallbacks that the model's rules give its implementation in ``context``
     (core.model.rules.resolve: the context's light transport, the implementation's indirect
     light). Raises UserError where the rules refuse the options."""
+    osl = implementation(node) == "osl"
+    strings = {}  # the OSL node's switches, set at once (its shared group changes once)
     for key, value in resolve(implementation(node), options, context).items():
         if key == "env_samples":  # a number, not a switch (the OSL shader's only)
             _input(node, key).default_value = int(value)
+        elif osl:
+            _check_option(key, value)
+            strings[BY_KEY[key].osl] = value
         else:
             set_option(node, key, value)
+    if strings:
+        osl_shader.set_strings(node, strings)
 
 
 # The OSL shader's settings of its integration, which ModelOptions carries (the node group has
@@ -275,11 +292,15 @@ OSL_SETTINGS = ("env_samples", "env_visibility", "one_sample", "sun_shadow", "sh
 
 def set_options(node: bpy.types.Node, options: ModelOptions) -> None:
     """The view, the switches and (OSL) the reference integrator's settings."""
-    for key in OPTION_KEYS:
-        set_option(node, key, getattr(options, key))
-    if implementation(node) == "osl":
-        for key in OSL_SETTINGS:
-            _input(node, key).default_value = getattr(options, key)
+    if implementation(node) != "osl":
+        for key in OPTION_KEYS:
+            set_option(node, key, getattr(options, key))
+        return
+    for key in OPTION_KEYS:  # one change of the node's strings (its shared group)
+        _check_option(key, getattr(options, key))
+    osl_shader.set_strings(node, {BY_KEY[k].osl: getattr(options, k) for k in OPTION_KEYS})
+    for key in OSL_SETTINGS:
+        _input(node, key).default_value = getattr(options, key)
 
 
 # --- Lighting --------------------------------------------------------------------------
@@ -326,14 +347,15 @@ def set_environment(node: bpy.types.Node, hdri, tables: dict | None = None, bake
     the group's textures at the bake. Arguments left None keep what the node has."""
     if implementation(node) == "osl":
         osl_shader.set_texture_convention(node)  # a file saved by another Blender
+        files = {}
         if tables is not None:
             for key, name in (
                 ("env_marginal", "marginal"),
                 ("env_conditional", "conditional"),
                 ("env_pdf_table", "pdf"),
             ):
-                _input(node, key).default_value = str(tables.get(name, ""))
-        osl_shader.set_environment(node, hdri, bake)
+                files[BY_KEY[key].osl] = str(tables.get(name, ""))
+        osl_shader.set_environment(node, hdri, bake, files)
     elif bake:
         node_group.set_bake(node.node_tree, bake)
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import bpy
 
+from . import owned
 from ..core.errors import UserError
 from ..core.files import temporary_folder
 from ..core.osl_source import SHADER_FILE, source
@@ -34,8 +35,6 @@ def shader_text(path: Path = SHADER_FILE, name: str = TEXT_NAME) -> bpy.types.Te
     """The add-on's text datablock holding a shader's source (blender/owned.py: a user's
     text of that name is never written; ours is then "<name>.001"), refreshed from its file
     when it differs."""
-    from . import owned
-
     text_source = source(path)
     text = owned.find(bpy.data.texts, name, owned.OSL_TEXT)
     if text is None:
@@ -153,7 +152,7 @@ def _from_compiled(node, text, bytecode: str, bytecode_hash: str, params: list) 
             sockets.remove(sock)
 
 
-def set_texture_convention(node: bpy.types.ShaderNodeScript) -> None:
+def set_texture_convention(node: bpy.types.Node) -> None:
     """Tell the shader how this Blender's OSL texture() counts rows (compat.py); a material
     saved by another Blender version is corrected by light_sync when it syncs."""
     from .compat import osl_texture_rows_bottom_up
@@ -161,25 +160,274 @@ def set_texture_convention(node: bpy.types.ShaderNodeScript) -> None:
     socket(node, "tex_bottom_up").default_value = int(osl_texture_rows_bottom_up())
 
 
-def set_environment(node: bpy.types.ShaderNodeScript, hdri, bake=None) -> None:
-    """Point the shader at the world's HDRI file and, when given, its split-sum bake folder;
-    also its width in texels, which the shader needs to filter lat-long images near their
-    edges (the bake's level 0 is the HDRI itself, so either file tells it)."""
+def set_environment(node: bpy.types.Node, hdri, bake=None, files: dict | None = None) -> None:
+    """Point the shader at the world's HDRI file and, when given, its split-sum bake folder
+    and other ``files`` (string input -> path); also its width in texels, which the shader
+    needs to filter lat-long images near their edges (the bake's level 0 is the HDRI itself,
+    so either file tells it). The strings change at once (``set_strings``)."""
     from ..core.hdri import image_width
     from ..core.ibl_bake import level_file, tables_folder
 
-    socket(node, "hdri").default_value = str(hdri) if hdri else ""
-    socket(node, "tables").default_value = str(tables_folder())
+    strings = {**(files or {}), "hdri": str(hdri) if hdri else "", "tables": str(tables_folder())}
     if bake is not None:
-        socket(node, "ibl_bake").default_value = str(bake)
+        strings["ibl_bake"] = str(bake)
+    set_strings(node, strings)
     bake = socket(node, "ibl_bake").default_value
     source = hdri or (Path(bake) / level_file(0) if bake else None)
     socket(node, "hdri_width").default_value = image_width(source) if source else 0
 
 
+def script_node(node: bpy.types.Node) -> bpy.types.ShaderNodeScript | None:
+    """The script node of a model node: the node itself, or the one in its group (a group
+    carrying the add-on's OSL mark, ``new_group``, also one linked from a library or copied by
+    the user); None where the node is neither."""
+    if node.bl_idname == "ShaderNodeScript":
+        return node
+    tree = getattr(node, "node_tree", None)
+    if node.bl_idname == "ShaderNodeGroup" and owned.carries_mark(tree, owned.OSL_GROUP):
+        return _group_script(tree)
+    return None
+
+
 def socket(node: bpy.types.Node, identifier: str, output: bool = False) -> bpy.types.NodeSocket:
-    """A script node's socket by its OSL parameter name (socket names carry the OSL labels)."""
-    for sock in node.outputs if output else node.inputs:
+    """A model node's socket by its OSL parameter name (socket names carry the OSL labels):
+    a script node's own, or a group node's socket of that name. A string input of a group
+    node is its group's script node's, which every material of the group shares: change it
+    with ``set_strings``."""
+    script = script_node(node) or node
+    for sock in script.outputs if output else script.inputs:
         if sock.identifier == identifier:
-            return sock
+            if script is node or sock.type == 'STRING':
+                return sock
+            outer = (node.outputs if output else node.inputs).get(sock.name)
+            if outer is None:
+                break
+            return outer
     raise KeyError(f"the shader has no parameter {identifier!r}")
+
+
+# --- One compiled shader per file and settings -------------------------------------------------
+#
+# A script node keeps its compiled shader (628 kB for the model) in the .blend, once per node:
+# 20 materials made a 16 MB file. Cycles compiles each material's shader group anyway (it
+# specialises it on the constant inputs), so a material needs no copy of its own. The model's
+# node is a group node whose group holds the script node: every input but the strings is the
+# group's, so each material sets its own; the strings (the view, the switches, the files) stay
+# on the script node, as a shader node group has no string socket. Materials whose strings are
+# the same share one group, and so one copy of the bytecode. A bare script node (a file of an
+# earlier version) keeps working.
+
+GROUP_NAME = "Cook-Torrance Lab OSL"
+SCRIPT_NODE = "Cook-Torrance Lab shader"  # the script node's name in the group
+SOURCE = "ctlab_osl_source"  # the group's custom property: the sha256 of its script's source
+NAME = "ctlab_osl_group_name"  # the group's custom property: the name the add-on gave it
+_INTERFACE_TYPES = {
+    "VALUE": "NodeSocketFloat",
+    "INT": "NodeSocketInt",
+    "BOOLEAN": "NodeSocketBool",
+    "RGBA": "NodeSocketColor",
+    "VECTOR": "NodeSocketVector",
+    "SHADER": "NodeSocketShader",
+}
+
+
+def _source_digest() -> str:
+    return hashlib.sha256(shader_text().as_string().encode()).hexdigest()
+
+
+_DEFAULTS = {}  # a source's sha256 -> the string inputs of its script node as compiled
+
+
+def shared_group() -> bpy.types.ShaderNodeTree:
+    """A group of the model's current shader for a new model node, its strings the shader's
+    defaults (as a new script node's): an existing one of the add-on's (``_mine``), else a copy
+    of one with other strings, else a new one. ``set_strings`` then gives the node its own."""
+    digest = _source_digest()
+    defaults = _DEFAULTS.get(digest)
+    current = [g for g in bpy.data.node_groups if _mine(g) and g.get(SOURCE) == digest]
+    if defaults is not None:
+        for group in current:
+            if _strings(_group_script(group)) == defaults:
+                return group
+        if current:
+            return _copy(current[0], defaults)
+    return new_group(digest)
+
+
+def _group_script(group) -> bpy.types.ShaderNodeScript | None:
+    inner = group.nodes.get(SCRIPT_NODE)
+    return inner if inner is not None and inner.bl_idname == "ShaderNodeScript" else None
+
+
+def _mine(group) -> bool:
+    """Whether the add-on may change, share or remove ``group``: its OSL mark (not linked), the
+    name the add-on gave it (a copy the user makes of it, which keeps the mark, has another
+    name: it is the user's), and nothing in it but the group's input, the script node and the
+    group's output, linked as ``sync_interface`` links them."""
+    if not owned.is_ours(group, owned.OSL_GROUP) or group.get(NAME) != group.name:
+        return False
+    script = _group_script(group)
+    if script is None or len(group.nodes) != 3:
+        return False
+    if sorted(n.bl_idname for n in group.nodes) != [
+        "NodeGroupInput",
+        "NodeGroupOutput",
+        "ShaderNodeScript",
+    ]:
+        return False
+    expected = len([s for s in script.inputs if s.type != 'STRING']) + len(script.outputs)
+    return len(group.links) == expected and all(
+        link.from_socket.name == link.to_socket.name
+        and (link.to_node == script or link.from_node == script)
+        for link in group.links
+    )
+
+
+def _copy(group, strings: dict) -> bpy.types.ShaderNodeTree:
+    """A copy of the group, the add-on's, with the given strings."""
+    copy = owned.mark(group.copy(), owned.OSL_GROUP)
+    copy[NAME] = copy.name
+    inner = _group_script(copy)
+    for key, value in strings.items():
+        inner.inputs[_index(inner, key)].default_value = value
+    return copy
+
+
+def new_group(digest: str | None = None) -> bpy.types.ShaderNodeTree:
+    """A new group (marked the add-on's, blender/owned.py) holding the model's script node,
+    compiled, with an input for each of its inputs but the strings and an output for each
+    output."""
+    group = owned.new(bpy.data.node_groups, GROUP_NAME, owned.OSL_GROUP, "ShaderNodeTree")
+    group[NAME] = group.name
+    group.description = (
+        "The Cook-Torrance Lab OSL shader, shared by the materials whose view, switches and "
+        "files are the same (docs/usage.md)"
+    )
+    script = group.nodes.new("ShaderNodeScript")
+    script.name = script.label = SCRIPT_NODE
+    compile_script_node(script)
+    group[SOURCE] = digest = digest or _source_digest()
+    _DEFAULTS.setdefault(digest, _strings(script))
+    sync_interface(group)
+    return group
+
+
+def refresh_group(group) -> None:
+    """A group of an earlier shader (a file saved by another version) recompiled in place,
+    its interface following the new inputs (a kept input keeps every material's value); a
+    linked group is its library's and is left as it is."""
+    if not owned.is_ours(group, owned.OSL_GROUP):
+        return
+    script = _group_script(group)
+    previous = {("INPUT", s.name) for s in script.inputs if s.type != 'STRING'}
+    previous |= {("OUTPUT", s.name) for s in script.outputs}
+    compile_script_node(script)
+    group[SOURCE] = _source_digest()
+    sync_interface(group, previous)
+
+
+def sync_interface(group, previous: set = frozenset()) -> None:
+    """The group's interface made its script node's: an input for each input but the strings
+    and an output for each output, linked; an item that exists under the same name and type
+    is kept (with the values the group's nodes give it). Of the others, only those named in
+    ``previous`` (the script node's sockets before a recompile) are removed: an item a user
+    added stays."""
+    script = _group_script(group)
+    nodes = group.nodes
+    group_in = next((n for n in nodes if n.bl_idname == "NodeGroupInput"), None)
+    group_in = group_in or nodes.new("NodeGroupInput")
+    group_out = next((n for n in nodes if n.bl_idname == "NodeGroupOutput"), None)
+    group_out = group_out or nodes.new("NodeGroupOutput")
+    group_in.location, script.location, group_out.location = (-300, 0), (0, 0), (300, 0)
+    items = {
+        (item.in_out, item.name): item
+        for item in group.interface.items_tree
+        if item.item_type == 'SOCKET'
+    }
+    wanted = [("INPUT", s) for s in script.inputs if s.type != 'STRING']
+    wanted += [("OUTPUT", s) for s in script.outputs]
+    kept = []
+    for in_out, sock in wanted:
+        kind = _INTERFACE_TYPES[sock.type]
+        item = items.pop((in_out, sock.name), None)
+        if item is not None and item.socket_type != kind:
+            group.interface.remove(item)
+            item = None
+        if item is None:
+            item = group.interface.new_socket(sock.name, in_out=in_out, socket_type=kind)
+            if in_out == "INPUT":
+                item.default_value = sock.default_value
+                item.hide_value = sock.hide_value
+        kept.append((in_out, sock, item.identifier))
+    for key, item in items.items():
+        if key in previous:
+            group.interface.remove(item)
+    for in_out, sock, identifier in kept:
+        if in_out == "INPUT":
+            group.links.new(group_in.outputs[identifier], sock)
+        else:
+            group.links.new(sock, group_out.inputs[identifier])
+
+
+def _strings(script) -> dict:
+    return {s.identifier: s.default_value for s in script.inputs if s.type == 'STRING'}
+
+
+def _interface(group) -> list:
+    """The group's sockets as a group node keeps its values and links by: identifiers."""
+    return [
+        (i.in_out, i.identifier, i.name, i.socket_type)
+        for i in group.interface.items_tree
+        if i.item_type == 'SOCKET'
+    ]
+
+
+def set_strings(node: bpy.types.Node, values: dict) -> None:
+    """Set a model node's string inputs (OSL parameter name -> text). A script node's are its
+    own. A group node gets the group whose strings these are: an existing one of the add-on's
+    (``_mine``) of the same shader and sockets, else its own group changed where it is the
+    add-on's and no other node uses it, else a copy; the add-on's group that no node uses any
+    more is removed. A group that is not the add-on's (the user's copy, a linked one) is never
+    changed or removed."""
+    script = script_node(node)
+    if script is None:
+        raise KeyError("not an OSL model node")
+    current = _strings(script)
+    unknown = set(values) - set(current)
+    if unknown:
+        raise KeyError(f"the shader has no string parameter {sorted(unknown)[0]!r}")
+    wanted = {**current, **{k: str(v) for k, v in values.items()}}
+    if script is node:
+        for key, value in wanted.items():
+            if current[key] != value:
+                script.inputs[_index(script, key)].default_value = value
+        return
+    if wanted == current:
+        return
+    old = node.node_tree
+    same = (old.get(SOURCE), script.bytecode_hash, _interface(old))
+    group = next(
+        (
+            g
+            for g in bpy.data.node_groups
+            if g is not old
+            and _mine(g)
+            and (g.get(SOURCE), _group_script(g).bytecode_hash, _interface(g)) == same
+            and _strings(_group_script(g)) == wanted
+        ),
+        None,
+    )
+    if group is None and _mine(old) and old.users == 1:
+        group = old  # only this node uses it: changed in place
+        for key, value in wanted.items():
+            script.inputs[_index(script, key)].default_value = value
+    elif group is None:
+        group = _copy(old, wanted)
+    if group is not old:
+        node.node_tree = group
+        if old.users == 0 and _mine(old):
+            bpy.data.node_groups.remove(old)
+
+
+def _index(script, identifier: str) -> int:
+    return next(i for i, s in enumerate(script.inputs) if s.identifier == identifier)

@@ -38,6 +38,7 @@ PREFILTERED_GROUP = "ctlab_prefiltered_group"
 MATRIX = "ctlab_matrix"  # the sphere matrix's world and collection (blender/scene_builder.py)
 MATERIAL = "ctlab_material"  # materials.py's generated materials
 OSL_TEXT = "ctlab_osl_text"  # a shader's source (blender/osl_shader.py)
+OSL_GROUP = "ctlab_osl_group"  # the model's compiled shader, shared (blender/osl_shader.py)
 TABLE_IMAGE = "ctlab_table_image"  # a baked file or table, packed (node_group._float_image)
 DATA_IMAGE = "ctlab_data_image"  # a pixel grid's data (blender/pixel_grid.py)
 PLOT_IMAGE = "ctlab_plot_image"  # the BRDF plot shown in the Image Editor (ui/operators/jobs.py)
@@ -83,6 +84,16 @@ def is_ours(block: bpy.types.ID | None, role: str) -> bool:
         return str(owner).split(" ")[0] == ADDON_ID and block.get(ROLE) == role
     tag = LEGACY.get(role)
     return tag is not None and bool(block.get(tag))
+
+
+def carries_mark(block: bpy.types.ID | None, role: str) -> bool:
+    """Whether ``block`` carries the add-on's mark for ``role``, wherever it comes from (a
+    linked library, a copy the user made): what it is, for reading. Whether the add-on may
+    change or remove it is ``is_ours``."""
+    if block is None:
+        return False
+    owner = block.get(OWNER)
+    return owner is not None and str(owner).split(" ")[0] == ADDON_ID and block.get(ROLE) == role
 
 
 def find(collection, name: str, role: str, where=None):

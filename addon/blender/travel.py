@@ -115,9 +115,14 @@ def portable_path(value: str, blend: Path) -> str | None:
 
 
 def _osl_nodes():
+    """The file's OSL model nodes, one per script node (materials share a group's)."""
+    seen = set()
     for mat, node in model_node.model_materials():
         if mat.library is None and model_node.implementation(node) == "osl":
-            yield mat, node
+            script = osl_shader.script_node(node)
+            if (script.id_data.session_uid, script.name) not in seen:
+                seen.add((script.id_data.session_uid, script.name))
+                yield mat, node
 
 
 @bpy.app.handlers.persistent

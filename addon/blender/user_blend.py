@@ -184,12 +184,17 @@ def scene_materials(scene: bpy.types.Scene) -> list:
 
 def refresh_osl(nodes) -> None:
     """A file saved with another version of the shader gets this version's (in memory):
-    the text datablock refreshed and each script node recompiled, keeping its values."""
+    the text datablock refreshed and each script node recompiled (a shared group's once),
+    keeping its values."""
     current = osl_shader.source()
-    stale = [
-        n
-        for n in nodes
-        if model_node.implementation(n) == "osl" and n.script.as_string() != current
-    ]
-    for node in stale:
-        osl_shader.compile_script_node(node)
+    stale = {}
+    for n in nodes:
+        if model_node.implementation(n) == "osl":
+            script = osl_shader.script_node(n)
+            if script.script.as_string() != current:
+                stale[script.id_data.session_uid, script.name] = (n, script)
+    for node, script in stale.values():
+        if script is node:
+            osl_shader.compile_script_node(node)
+        else:
+            osl_shader.refresh_group(node.node_tree)

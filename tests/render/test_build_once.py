@@ -207,7 +207,7 @@ def test_an_osl_node_leaves_nothing_in_tmpdir(monkeypatch, tmp_path):
         mat = _material(name)
         assert convert.principled_to_model(mat, scene, "osl") == []
         assert model_node.implementation(model_node.find(mat)) == "osl"
-        nodes.append(model_node.find(mat))
+        nodes.append(osl_shader.script_node(model_node.find(mat)))
     assert sorted(p.name for p in tmp.iterdir()) == []
     # compiled once: the later nodes get the first's bytecode and the same sockets
     assert len(compiles) == 1 and scene.render.engine == 'CYCLES'
@@ -253,13 +253,13 @@ def _render_sphere(node_setup, tmp_path, name):
     node an OSL node that ``node_setup`` gives its bytecode."""
     from helpers import SUN_LIT, render_still, sun_lit_sphere
 
-    from addon.blender import materials
+    from addon.blender import materials, osl_shader
     from addon.core.model import Lighting, ModelOptions
 
     scene, sphere = sun_lit_sphere(24)
     options, lighting = ModelOptions(ibl="split_sum"), Lighting(**SUN_LIT)
     mat = materials.model_material("sphere", "osl", options, lighting, metallic=0.5)
-    node_setup(model_node.find(mat))
+    node_setup(osl_shader.script_node(model_node.find(mat)))
     sphere.data.materials.append(mat)
     return render_still(scene, tmp_path / f"{name}.exr")
 
@@ -308,3 +308,137 @@ def test_the_stored_bytecode_is_portable(tmp_path):
     # bit for bit on 5.2; 4.5 renders one shader twice within 4e-7 of itself
     assert ours_pixels.max() > 0.05
     assert abs(ours_pixels - cycles_pixels).max() <= (0.0 if bpy.app.version >= (5, 0) else 2e-6)
+
+
+def _script_nodes():
+    """Every script node of the file: in materials and in node groups."""
+    trees = [m.node_tree for m in bpy.data.materials if m.node_tree] + list(bpy.data.node_groups)
+    return [n for t in trees for n in t.nodes if n.bl_idname == "ShaderNodeScript"]
+
+
+def test_osl_materials_share_one_compiled_shader(tmp_path):
+    """A script node stores the compiled shader (628 kB of the model's) in the .blend once per
+    node: 20 OSL materials made a 16.1 MB file (bench/results.md). The model's OSL node is a
+    group node whose group holds the script node (osl_shader.shared_group), the strings (view,
+    switches, files) on the script node, every other input on the group node: materials with
+    the same strings share one group, one copy. Checked: 20 converted materials hold one
+    script node between them and save, uncompressed, in under 2 MB, each keeping its own
+    Metallic; one given another view gets a group of its own while the 19 keep theirs and
+    their view, and going back rejoins the shared group (the group made in between, unused,
+    is removed); a user's node group of the shared group's name is never used or changed.
+    Mutation check: a script node per material (as before) fails the count and the size."""
+    from addon.blender import osl_shader
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    users_group = bpy.data.node_groups.new(osl_shader.GROUP_NAME, "ShaderNodeTree")
+    mats = []
+    for i in range(20):
+        mat = _material(f"M{i:02d}")
+        convert.surface_principled(mat).inputs["Metallic"].default_value = i / 19
+        assert convert.principled_to_model(mat, scene, "osl") == []
+        mats.append(mat)
+    nodes = [model_node.find(m) for m in mats]
+    assert all(model_node.implementation(n) == "osl" for n in nodes)
+    shared = nodes[0].node_tree
+    assert all(n.node_tree == shared for n in nodes) and shared != users_group
+    assert users_group.name == osl_shader.GROUP_NAME and len(users_group.nodes) == 0
+    assert len(_script_nodes()) == 1 and len(_script_nodes()[0].bytecode) > 500_000
+    metallic = [model_node.surface_input(n, "metallic").default_value for n in nodes]
+    assert metallic == pytest.approx([i / 19 for i in range(20)])
+    path = tmp_path / "twenty.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), compress=False, copy=True)
+    assert path.stat().st_size < 2_000_000, path.stat().st_size
+
+    model_node.set_option(nodes[3], "view", "D")
+    own = nodes[3].node_tree
+    assert own != shared and model_node.get_option(nodes[3], "view") == "D"
+    assert model_node.surface_input(nodes[3], "metallic").default_value == pytest.approx(3 / 19)
+    others = [n for n in nodes if n != nodes[3]]
+    assert all(n.node_tree == shared and model_node.get_option(n, "view") == "full" for n in others)
+    assert len(_script_nodes()) == 2
+    model_node.set_option(nodes[3], "view", "full")
+    assert nodes[3].node_tree == shared and len(_script_nodes()) == 1
+    assert model_node.surface_input(nodes[3], "metallic").default_value == pytest.approx(3 / 19)
+    assert len(users_group.nodes) == 0 and users_group.users == 0
+
+    # a new node starts from the shader's own strings, not another material's files
+    assert osl_shader.socket(nodes[0], "tables").default_value
+    fresh = model_node.new_node(_material("fresh").node_tree, "osl")
+    assert osl_shader.socket(fresh, "tables").default_value == ""
+    assert model_node.get_option(fresh, "view") == "full"
+    fresh.id_data.nodes.remove(fresh)
+
+    # a copy the user makes of the shared group (it keeps the add-on's mark) and edits is
+    # theirs: still the model, never changed, shared or removed
+    mine = shared.copy()
+    mine.name = "My shader"
+    mine.nodes.new("ShaderNodeRGB")
+    nodes[5].node_tree = mine
+    assert model_node.implementation(nodes[5]) == "osl"
+    model_node.set_option(nodes[5], "view", "NdotL")
+    assert nodes[5].node_tree != mine and model_node.get_option(nodes[5], "view") == "NdotL"
+    assert osl_shader.socket(nodes[5], "view").id_data != mine
+    assert osl_shader.script_node(nodes[7]).inputs["View"].default_value == "full"
+    model_node.set_option(nodes[5], "view", "full")
+    assert nodes[5].node_tree == shared and mine.name in bpy.data.node_groups
+    assert len(mine.nodes) == 4 and osl_shader.script_node(nodes[0]).id_data == shared
+    nodes[6].node_tree = mine
+    model_node.set_option(nodes[8], "view", "D")  # another group is made, not the user's used
+    assert nodes[8].node_tree not in (mine, shared) and mine.users == 1
+    kept = shared.copy()  # renamed, not edited: the user's all the same
+    kept.name = "Kept"
+    nodes[9].node_tree = kept
+    model_node.set_option(nodes[9], "view", "G")
+    assert (
+        nodes[9].node_tree != kept
+        and kept.nodes[osl_shader.SCRIPT_NODE].inputs["View"].default_value == "full"
+    )
+    assert "Kept" in bpy.data.node_groups and kept.users == 0
+
+
+def test_a_script_node_of_an_earlier_version_is_still_the_model():
+    """Files of earlier versions hold a bare script node in each OSL material: it is still
+    the model's node (the panel, the sync and the jobs find it), its own strings change with
+    set_option and the world's files, and no shared group is made for it."""
+    from addon.blender import osl_shader
+    from addon.core.model import Lighting
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    mat = _material("old")
+    mat.node_tree.nodes.clear()
+    node = mat.node_tree.nodes.new("ShaderNodeScript")
+    osl_shader.compile_script_node(node)
+    assert model_node.find(mat) == node and model_node.implementation(node) == "osl"
+    model_node.set_option(node, "view", "NdotL")
+    model_node.set_lighting(node, Lighting())
+    assert node.inputs["View"].default_value == "NdotL"
+    assert model_node.get_option(node, "view") == "NdotL"
+    assert node.inputs["Tables Folder"].default_value  # set_environment's folder of tables
+    model_node.surface_input(node, "metallic").default_value = 0.25
+    assert node.inputs["Metallic"].default_value == 0.25
+    assert not [g for g in bpy.data.node_groups if g.name.startswith(osl_shader.GROUP_NAME)]
+
+
+def test_an_osl_material_linked_from_a_library_is_the_model(tmp_path):
+    """A material linked from another .blend is read like a local one (the export reads
+    linked materials): its node, though its shared group is the library's, is the model's."""
+    from addon.blender import materials, osl_shader
+    from addon.core.model import Lighting, ModelOptions
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    mat = materials.model_material(
+        "shared", "osl", ModelOptions(view="D"), Lighting(), metallic=0.3
+    )
+    mat.use_fake_user = True  # saved without an object
+    library = tmp_path / "library.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(library), copy=True)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with bpy.data.libraries.load(str(library), link=True) as (data_from, data_to):
+        data_to.materials = ["shared"]
+    (mat,) = data_to.materials
+    node = model_node.find(mat)
+    assert mat.library is not None and node is not None
+    assert model_node.implementation(node) == "osl" and model_node.get_option(node, "view") == "D"
+    assert model_node.surface_input(node, "metallic").default_value == pytest.approx(0.3)
+    assert osl_shader.script_node(node).id_data.library is not None

@@ -89,8 +89,10 @@ def test_zip_builds_validates_installs_and_builds_the_matrix(tmp_path):
         assert len([o for o in tagged if o.type == 'MESH']) == 6, len(tagged)
         assert "User Empty" in bpy.data.objects
         mat = bpy.data.materials["Cook-Torrance Matrix"]
-        node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeScript")
-        assert any(s.identifier == "albedo" for s in node.inputs), "the OSL shader has no sockets"
+        node = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup")
+        script = node.node_tree.nodes["Cook-Torrance Lab shader"]  # its shared compiled shader
+        assert any(s.identifier == "albedo" for s in script.inputs), "the OSL shader has no sockets"
+        assert len(node.inputs) > 50, "the shared shader's group has no inputs"
         try:                       # headless, an operator's ERROR report raises RuntimeError
             bpy.ops.ctlab.build_sphere_matrix(hdri="/nonexistent.exr")
             raise AssertionError("a missing HDRI was accepted")

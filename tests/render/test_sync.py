@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon.blender import light_sync, model_node, node_group
+from addon.blender import light_sync, model_node, node_group, osl_shader
 from addon.core import cache
 from addon.core.compare import read_image
 from addon.core.hdri import image_width, write_float_exr
@@ -40,7 +40,7 @@ def test_the_handler_follows_the_world_from_its_colour_to_a_new_image(addon, tmp
     osl, nodes = _material("osl"), _material("nodes")
     light_sync.on_depsgraph_update(scene)
     osl_node = model_node.find(osl)
-    uniform = osl_node.inputs["HDRI"].default_value
+    uniform = osl_shader.socket(osl_node, "hdri").default_value
     np.testing.assert_allclose(
         read_image(uniform), np.broadcast_to((0.2, 0.3, 0.4), (8, 16, 3)), rtol=1e-6
     )
@@ -51,11 +51,11 @@ def test_the_handler_follows_the_world_from_its_colour_to_a_new_image(addon, tmp
     _world_image(scene, sky)
     assert light_sync.world_hdri_path(scene) == str(sky)
     light_sync.on_depsgraph_update(scene)
-    assert osl_node.inputs["HDRI"].default_value == str(sky)
+    assert osl_shader.socket(osl_node, "hdri").default_value == str(sky)
     assert osl_node.inputs["HDRI Width"].default_value == image_width(sky) == 64
     tables = [
-        osl_node.inputs[label].default_value
-        for label in ("Env Marginal Table", "Env Conditional Table", "Env PDF Table")
+        osl_shader.socket(osl_node, key).default_value
+        for key in ("env_marginal", "env_conditional", "env_pdf_table")
     ]
     assert all(t.endswith(".exr") for t in tables)
     from pathlib import Path
@@ -73,9 +73,9 @@ def test_the_handler_follows_the_world_from_its_colour_to_a_new_image(addon, tmp
         read_image(Path(next(iter(images))).parent / "specular_0.exr"), read_image(sky), rtol=1e-6
     )
     # a state already synced is not synced again (the handler runs on every depsgraph update)
-    osl_node.inputs["HDRI"].default_value = "untouched"
+    osl_shader.socket(osl_node, "hdri").default_value = "untouched"
     light_sync.on_depsgraph_update(scene)
-    assert osl_node.inputs["HDRI"].default_value == "untouched"
+    assert osl_shader.socket(osl_node, "hdri").default_value == "untouched"
 
 
 def test_the_key_sun_is_the_chosen_one_else_the_first_by_name_else_none(addon):

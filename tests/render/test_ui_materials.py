@@ -7,7 +7,7 @@ import bpy
 import pytest
 from mathutils import Vector
 
-from addon.blender import compat, convert, model_node, scene_lights
+from addon.blender import compat, convert, model_node, osl_shader, scene_lights
 from addon.core.model import LIGHT_TYPE_CODES
 from addon.ui import register, panels as ui
 from ui_helpers import add_sun, draw, evaluate_drivers, registered_state
@@ -34,7 +34,7 @@ def test_new_material_follows_the_sun_and_world(addon):
     sun = add_sun(scene)
     cube = bpy.data.objects["Cube"]
     bpy.context.view_layer.objects.active = cube
-    for impl, kind in (("nodes", "ShaderNodeGroup"), ("osl", "ShaderNodeScript")):
+    for impl, kind in (("nodes", "ShaderNodeGroup"), ("osl", "ShaderNodeGroup")):
         assert bpy.ops.ctlab.new_material(implementation=impl) == {'FINISHED'}
         mat = cube.active_material
         node = model_node.find(mat)
@@ -47,7 +47,7 @@ def test_new_material_follows_the_sun_and_world(addon):
                 == "ShaderNodeNewGeometry"
             )
             assert model_node.get_option(node, "ibl") == "reference"
-            assert node.inputs["HDRI"].default_value.endswith(".exr")
+            assert osl_shader.socket(node, "hdri").default_value.endswith(".exr")
         else:
             assert model_node.get_option(node, "ibl") == "split_sum"
         paths = {fc.data_path for fc in mat.node_tree.animation_data.drivers}
@@ -75,7 +75,7 @@ def test_new_material_follows_the_sun_and_world(addon):
     assert model_node.get_option(node, "view") == "D" and mat.ctlab_view == "D"
     assert mat.ctlab_g_model == "cook_torrance"
     mat.ctlab_g_model = "smith_ggx_correlated"
-    assert node.inputs["G"].default_value == "smith_ggx_correlated"
+    assert osl_shader.socket(node, "g_model").default_value == "smith_ggx_correlated"
 
 
 def test_add_menu_node_group_and_textures(addon):

@@ -82,7 +82,7 @@ def show_residual(mat, node):
     nt = mat.node_tree
     out = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
     emit = nt.nodes.new("ShaderNodeEmission")
-    nt.links.new(node.outputs[OSL_RESIDUAL], emit.inputs["Color"])
+    nt.links.new(model_node.residual_output(node), emit.inputs["Color"])
     nt.links.new(emit.outputs[0], out.inputs["Surface"])
 
     def undo():
@@ -122,7 +122,7 @@ def residual_pass(tmp_path_factory):
     light_sync.update_residual(mat.node_tree, node, scene)
     assert any(
         link.to_node.bl_idname == "ShaderNodeOutputAOV" and link.to_node.aov_name == OSL_RESIDUAL
-        for link in node.outputs[OSL_RESIDUAL].links
+        for link in model_node.residual_output(node).links
     ), "no AOV Output for the pass"
     show_residual(mat, node)
     out = tmp_path_factory.mktemp("residual-pass")

@@ -357,7 +357,7 @@ def test_the_residual_albedo_pass_is_the_quadrature(tmp_path, g_model):
     node = model_node.find(mat)
     nt = mat.node_tree
     emit = nt.nodes.new("ShaderNodeEmission")
-    nt.links.new(node.outputs["residual_albedo"], emit.inputs["Color"])
+    nt.links.new(model_node.residual_output(node), emit.inputs["Color"])
     out = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
     nt.links.new(emit.outputs[0], out.inputs["Surface"])
     renderer.configure(scene, "osl", "full", 1, pixel_centres=True, path_traced=True)
