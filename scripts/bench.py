@@ -152,7 +152,7 @@ def main():
         help="run these sections, keep the others from results.json",
     )
     ap.add_argument(
-        "--pairs", type=int, help="A/B pairs (scene-real, scene-cost, scene-depth; default 2)"
+        "--pairs", type=int, help="A/B pairs (main, scene-real, scene-cost, scene-depth; default 2)"
     )
     ap.add_argument(
         "--config",
