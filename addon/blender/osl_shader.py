@@ -69,7 +69,7 @@ def compile_script_node(
     # the bytecode and the sockets of the first (``_COMPILED``), without a compile (44 ms of
     # a conversion's 78, bench: 300 materials).
     text = shader_text(path, name)
-    key = hashlib.sha256(text.as_string().encode()).hexdigest()
+    key = text_digest(text)
     if key in _COMPILED:
         _from_compiled(node, text, *_COMPILED[key])
     else:
@@ -231,8 +231,10 @@ _INTERFACE_TYPES = {
 }
 
 
-def _source_digest() -> str:
-    return hashlib.sha256(shader_text().as_string().encode()).hexdigest()
+def text_digest(text: bpy.types.Text) -> str:
+    """The SHA-256 of a shader's source text: the key of its compile (``_COMPILED``) and, for
+    the model's, of a shared group's script (``SOURCE``)."""
+    return hashlib.sha256(text.as_string().encode()).hexdigest()
 
 
 _DEFAULTS = {}  # a source's sha256 -> the string inputs of its script node as compiled
@@ -242,7 +244,7 @@ def shared_group() -> bpy.types.ShaderNodeTree:
     """A group of the model's current shader for a new model node, its strings the shader's
     defaults (as a new script node's): an existing one of the add-on's (``_mine``), else a copy
     of one with other strings, else a new one. ``set_strings`` then gives the node its own."""
-    digest = _source_digest()
+    digest = text_digest(shader_text())
     defaults = _DEFAULTS.get(digest)
     current = [g for g in bpy.data.node_groups if _mine(g) and g.get(SOURCE) == digest]
     if defaults is not None:
@@ -251,7 +253,7 @@ def shared_group() -> bpy.types.ShaderNodeTree:
                 return group
         if current:
             return _copy(current[0], defaults)
-    return new_group(digest)
+    return new_group()
 
 
 def _group_script(group) -> bpy.types.ShaderNodeScript | None:
@@ -293,7 +295,7 @@ def _copy(group, strings: dict) -> bpy.types.ShaderNodeTree:
     return copy
 
 
-def new_group(digest: str | None = None) -> bpy.types.ShaderNodeTree:
+def new_group() -> bpy.types.ShaderNodeTree:
     """A new group (marked the add-on's, blender/owned.py) holding the model's script node,
     compiled, with an input for each of its inputs but the strings and an output for each
     output."""
@@ -306,8 +308,8 @@ def new_group(digest: str | None = None) -> bpy.types.ShaderNodeTree:
     script = group.nodes.new("ShaderNodeScript")
     script.name = script.label = SCRIPT_NODE
     compile_script_node(script)
-    group[SOURCE] = digest = digest or _source_digest()
-    _DEFAULTS.setdefault(digest, _strings(script))
+    group[SOURCE] = text_digest(script.script)
+    _DEFAULTS.setdefault(group[SOURCE], _strings(script))
     sync_interface(group)
     return group
 
@@ -322,7 +324,7 @@ def refresh_group(group) -> None:
     previous = {("INPUT", s.name) for s in script.inputs if s.type != 'STRING'}
     previous |= {("OUTPUT", s.name) for s in script.outputs}
     compile_script_node(script)
-    group[SOURCE] = _source_digest()
+    group[SOURCE] = text_digest(script.script)
     sync_interface(group, previous)
 
 
