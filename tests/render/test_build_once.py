@@ -442,3 +442,39 @@ def test_an_osl_material_linked_from_a_library_is_the_model(tmp_path):
     assert model_node.implementation(node) == "osl" and model_node.get_option(node, "view") == "D"
     assert model_node.surface_input(node, "metallic").default_value == pytest.approx(0.3)
     assert osl_shader.script_node(node).id_data.library is not None
+
+
+def test_a_shared_group_of_an_earlier_shader_is_recompiled_once_keeping_values(monkeypatch):
+    """A file saved by another version holds a shared group whose script is an older source:
+    user_blend.refresh_osl recompiles it once for all its materials (in place: the group is
+    the add-on's), each keeping its own values and its output link."""
+    from addon.blender import osl_shader, user_blend
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    mats = []
+    for i in range(3):
+        mat = _material(f"R{i}")
+        convert.surface_principled(mat).inputs["Metallic"].default_value = 0.2 * (i + 1)
+        assert convert.principled_to_model(mat, scene, "osl") == []
+        mats.append(mat)
+    nodes = [model_node.find(m) for m in mats]
+    group = nodes[0].node_tree
+    script = osl_shader.script_node(nodes[0])
+    # the file's text holds the earlier source (the bytecode is the earlier compile's)
+    script.script.from_string(script.script.as_string() + "\n// an earlier version\n")
+    assert script.script.as_string() != osl_shader.source()
+    calls = []
+    compile_ = osl_shader.compile_script_node
+    monkeypatch.setattr(
+        osl_shader, "compile_script_node", lambda node, *a: calls.append(node) or compile_(node)
+    )
+    user_blend.refresh_osl(nodes)
+    assert len(calls) == 1 and all(n.node_tree == group for n in nodes)
+    assert script.script.as_string() == osl_shader.source()
+    assert group[osl_shader.SOURCE] == osl_shader.text_digest(script.script)
+    for i, node in enumerate(nodes):
+        assert model_node.surface_input(node, "metallic").default_value == pytest.approx(
+            0.2 * (i + 1)
+        )
+        assert model_node.shader_output(node).is_linked
