@@ -25,6 +25,8 @@ BAKE_FILE = "ctlab_bake_file"  # texture nodes: which baked file they read
 BAKE_DIM = "ctlab_bake_dim"  # value nodes: that file's width or height
 MODEL_TABLE = "ctlab_model_table"  # texture nodes: which correction table they read
 POLE_MARGIN = 3e-3  # radians: the least distance of a lat-long lookup from a pole
+# added to a lookup direction's x (environment()): h > 0 at a pole, its square a normal float32
+POLE_NUDGE = 1e-18
 # The correction group's pre-filtered terms are instances of one group of the chain (its
 # many lookups built once)
 CHAIN_INPUTS = (("Level", "FLOAT"), ("Direction", "VECTOR"), ("Colour", "VECTOR"))
@@ -294,36 +296,28 @@ class Compiler:
         texel centres, no mip-maps in Cycles or EEVEE; Blender's equirectangular mapping, s
         periodic). The model clamps t to the centres of the first and last rows; Cycles
         wraps it (REPEAT), mixing the two poles. So d's elevation is limited here to
-        pi/2 - delta: its horizontal part h is scaled by k = max(1, |d.z| tan(delta) / h), and
-        a direction exactly at a pole (h = 0, a flat floor's normal) is given the horizontal
-        part |d.z| tan(delta) along +x, where the model's s is 0.5 as well.
+        pi/2 - delta: its horizontal part h is scaled by k = max(1, |d.z| tan(delta) / h).
 
         delta is half a row, pi/(2H), but at least POLE_MARGIN: Cycles finds t from
         acos(d.z / |d|) in float32, which cannot resolve half a row of a tall image (at
         H = 1024 it overshot the last row's centre by 1% of a row, at H = 4096 by half a
-        row). For H > 524 the lookup reads a little below the last row's centre instead."""
+        row). For H > 524 the lookup reads a little below the last row's centre instead.
+
+        Per direction, once: d' = d + (POLE_NUDGE, 0, 0), so that h > 0 everywhere. Away
+        from the poles the nudge is below float32's resolution of d.x (or, where d.x is 0,
+        of atan2); exactly at a pole (h = 0, a flat floor's normal) k scales it to the
+        horizontal part |d.z| tan(delta) along +x, where the model's s is 0.5 as well. Then
+        per file only k and d' (k, k, 1): four nodes."""
         if d not in self.horizontal:
-            dx, dy, dz = (self.call(c, [d]) for c in ("x", "y", "z"))
-            h = self.call(
-                "math.SQRT",
-                [
-                    self.call(
-                        "math.ADD",
-                        [
-                            self.call("math.MULTIPLY", [dx, dx]),
-                            self.call("math.MULTIPLY", [dy, dy]),
-                        ],
-                    )
-                ],
-            )
-            at_pole = self.call("math.LESS_THAN", [h, 1e-20])
-            self.horizontal[d] = (
-                self.call("math.ABSOLUTE", [dz]),
-                self.call("math.MAXIMUM", [h, 1e-20]),
-                at_pole,
-                self.call("math.SUBTRACT", [1.0, at_pole]),
-            )
-        abs_z, h, at_pole, off_pole = self.horizontal[d]
+            nudged = self.call("vec.ADD", [d, 0.0])
+            nudged.node.inputs[1].default_value = (POLE_NUDGE, 0.0, 0.0)
+            flat = self.call("vec.MULTIPLY", [nudged, 1.0])
+            flat.node.inputs[1].default_value = (1.0, 1.0, 0.0)
+            # (at least the nudge: where d.x is exactly -POLE_NUDGE, never a division by 0)
+            h = self.call("math.MAXIMUM", [self.call("vec.LENGTH", [flat]), POLE_NUDGE])
+            abs_z = self.call("math.ABSOLUTE", [self.call("z", [d])])
+            self.horizontal[d] = (nudged, self.call("math.DIVIDE", [abs_z, h]))
+        nudged, z_over_h = self.horizontal[d]
         delta = self.call(
             "math.MAXIMUM",
             [
@@ -331,19 +325,12 @@ class Compiler:
                 POLE_MARGIN,
             ],
         )
-        least = self.call("math.MULTIPLY", [abs_z, self.call("math.TANGENT", [delta])])
         k = self.call(
-            "math.MULTIPLY",
-            [self.call("math.MAXIMUM", [1.0, self.call("math.DIVIDE", [least, h])]), off_pole],
+            "math.MAXIMUM",
+            [1.0, self.call("math.MULTIPLY", [z_over_h, self.call("math.TANGENT", [delta])])],
         )
-        clamped = self.call(
-            "vec.ADD",
-            [
-                self.call("vec.MULTIPLY", [d, self.call("vec3", [k, k, 1.0])]),
-                self.call("vec3", [self.call("math.MULTIPLY", [least, at_pole]), 0.0, 0.0]),
-            ],
-        )
-        return self.lookup(key, clamped)
+        scale = self.call("vec3", [k, k, 1.0])
+        return self.lookup(key, self.call("vec.MULTIPLY", [nudged, scale]))
 
     def lookup(self, key, d):
         node = self.new(
