@@ -343,26 +343,23 @@ class Compiler:
 
     def table(self, key, u, v):
         """A baked table at (u, v), bilinear, for (u, v) within the texel centres' range.
-        Read by an Environment Texture node toward the direction that Blender's
-        equirectangular mapping takes to (u, v), phi = 2 pi (0.5 - u), theta = pi (v - 0.5):
-        one bilinear lookup without mip-maps in both Cycles and EEVEE (an Image Texture
-        node's Linear lookups use mip-maps in EEVEE). The round trip through the angles costs
-        up to 4e-5 of a texel in float32; (u, v) stays half a texel inside the edges, so the
-        wrapped neighbour's weight is at most about 4e-6."""
+        Read by an Environment Texture node toward a direction that Blender's
+        equirectangular mapping takes to (u, v): azimuth phi = 2 pi (0.5 - u), elevation
+        theta = pi (v - 0.5), as d = (cos phi, sin phi, tan theta), whose elevation
+        atan2(tan theta, 1) is theta (|theta| < pi/2 half a texel inside the edges): one
+        bilinear lookup without mip-maps in both Cycles and EEVEE (an Image Texture node's
+        Linear lookups use mip-maps in EEVEE). The round trip through the angles costs up to
+        about 5e-5 of a texel in float32; (u, v) stays half a texel inside the edges, so the
+        wrapped neighbour's weight is at most about 5e-6."""
         if (u, v) not in self.table_directions:  # one direction for the tables at (u, v)
-            phi = self.call(
-                "math.MULTIPLY", [self.call("math.SUBTRACT", [0.5, u]), 6.283185307179586]
-            )
-            theta = self.call(
-                "math.MULTIPLY", [self.call("math.SUBTRACT", [v, 0.5]), 3.141592653589793]
-            )
-            cos_theta = self.call("math.COSINE", [theta])
+            phi = self.call("math.MULTIPLY_ADD", [u, -6.283185307179586, 3.141592653589793])
+            theta = self.call("math.MULTIPLY_ADD", [v, 3.141592653589793, -1.5707963267948966])
             self.table_directions[u, v] = self.call(
                 "vec3",
                 [
-                    self.call("math.MULTIPLY", [cos_theta, self.call("math.COSINE", [phi])]),
-                    self.call("math.MULTIPLY", [cos_theta, self.call("math.SINE", [phi])]),
-                    self.call("math.SINE", [theta]),
+                    self.call("math.COSINE", [phi]),
+                    self.call("math.SINE", [phi]),
+                    self.call("math.TANGENT", [theta]),
                 ],
             )
         return self.lookup(key, self.table_directions[u, v])
