@@ -138,8 +138,9 @@ class Compiler:
         if isinstance(value, bpy.types.NodeSocket):
             self.tree.links.new(value, sock)
         elif sock.type == 'VECTOR' or sock.type == 'RGBA':
-            n = len(sock.default_value)
-            sock.default_value = (value,) * n if n == 3 else (value, value, value, 1.0)
+            # a number for every component, or a vector constant (x, y, z)
+            xyz = tuple(value) if isinstance(value, tuple) else (value,) * 3
+            sock.default_value = xyz if len(sock.default_value) == 3 else xyz + (1.0,)
         else:
             sock.default_value = value
 
@@ -309,10 +310,8 @@ class Compiler:
         horizontal part |d.z| tan(delta) along +x, where the model's s is 0.5 as well. Then
         per file only k and d' (k, k, 1): four nodes."""
         if d not in self.horizontal:
-            nudged = self.call("vec.ADD", [d, 0.0])
-            nudged.node.inputs[1].default_value = (POLE_NUDGE, 0.0, 0.0)
-            flat = self.call("vec.MULTIPLY", [nudged, 1.0])
-            flat.node.inputs[1].default_value = (1.0, 1.0, 0.0)
+            nudged = self.call("vec.ADD", [d, (POLE_NUDGE, 0.0, 0.0)])
+            flat = self.call("vec.MULTIPLY", [nudged, (1.0, 1.0, 0.0)])
             # (at least the nudge: where d.x is exactly -POLE_NUDGE, never a division by 0)
             h = self.call("math.MAXIMUM", [self.call("vec.LENGTH", [flat]), POLE_NUDGE])
             abs_z = self.call("math.ABSOLUTE", [self.call("z", [d])])
