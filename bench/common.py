@@ -1,11 +1,13 @@
 """What the benchmark's sections share: the repository's paths, the renderers as ``ctlab
 render``'s arguments, and one render of the sphere matrix in its own process (as an artist's
 would run it: its render time is Cycles' synchronisation plus render as scene.json records
-them, and the process's wall time is reported beside it); and a section's own child process
-(``child``: scripts/bench.py --child SECTION ARGS, the one child entry of the benchmark)."""
+them, and the process's wall time is reported beside it); a section's own child process
+(``child``: scripts/bench.py --child SECTION ARGS, the one child entry of the benchmark); and
+the one way they all run a child, timed by wall and CPU time (``timed_run``)."""
 
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -38,6 +40,24 @@ ARGS = {**RENDERERS, **ENV_VARIANTS}
 MAIN_SCENE = {"grid": "7x7", "size": 512, "samples": 64}  # the main job's defaults
 
 
+def _cpu_of_children() -> float:
+    """User + system CPU seconds of every child process waited for so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def timed_run(cmd: list, **kwargs) -> tuple:
+    """``cmd`` run to its end (subprocess.run, output captured as text; ``kwargs`` passed on):
+    the completed process, its wall time and its CPU time (user + system, its threads
+    together) in seconds. Where other work shares the machine, the wall time grows with the
+    waits; the CPU time counts only the process's own work."""
+    cpu = _cpu_of_children()
+    start = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
+    wall = time.perf_counter() - start
+    return done, wall, _cpu_of_children() - cpu
+
+
 def render(name: str, out: Path, grid: str, size: int, samples: int, seed: int = 0) -> dict:
     """One render of the sphere matrix in a child process: its times and folder."""
     cmd = [
@@ -56,9 +76,7 @@ def render(name: str, out: Path, grid: str, size: int, samples: int, seed: int =
         "--out",
         str(out),
     ]
-    start = time.perf_counter()
-    done = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.perf_counter() - start
+    done, wall, _ = timed_run(cmd)
     if done.returncode != 0:
         raise SystemExit(f"bench: {' '.join(cmd)} failed:\n{done.stderr[-2000:]}")
     scene = json.loads((out / "scene.json").read_text())
@@ -86,14 +104,13 @@ def child(section: str, *args) -> dict:
     cmd = [sys.executable, str(BENCH), "--child", section, *map(str, args)]
     env = dict(os.environ)
     env.setdefault("CTLAB_CACHE", str(CACHE))
-    start = time.perf_counter()
     # the child ends with os._exit (no atexit): its temporary folder, Blender's session folder
     # in it, is one of ours, removed here
     with tempfile.TemporaryDirectory(prefix="ctlab-bench-") as tmp:
-        p = subprocess.run(cmd, capture_output=True, text=True, env=dict(env, TMPDIR=tmp))
+        p, wall, _ = timed_run(cmd, env=dict(env, TMPDIR=tmp))
     if p.returncode != 0:
         raise SystemExit(f"bench: {' '.join(cmd)} failed:\n{(p.stderr or p.stdout)[-3000:]}")
     lines = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
     out = json.loads(lines[-1][7:]) if lines else {}
-    out["process_seconds"] = round(time.perf_counter() - start, 2)
+    out["process_seconds"] = round(wall, 2)
     return out
